@@ -1,0 +1,38 @@
+#pragma once
+// Contact component: the persistent pair list (candidate pairs within the neighbour skin) and the
+// per-pair history that a restart must carry. Entries are in a canonical sorted order by
+// (id_i, id_j, image) with id_i < id_j; each pair owns its force slots, so the contact law writes
+// without atomics and the per-particle gather sums in a fixed order.
+// Each array: (shape) units; the system that writes it.
+#include "components/types.hpp"
+
+#include <vector>
+
+namespace sandcell {
+
+struct ContactPairs {
+  std::vector<ParticleId> id_i, id_j;    // (m) -, id_i < id_j; written by the broadphase
+  std::vector<Image> image;              // (m,3) -, j is taken at x_j + H n; written by the broadphase
+  std::vector<std::uint32_t> i, j;       // (m) -, current array indices of id_i, id_j; broadphase / reorder
+
+  std::size_t size() const { return id_i.size(); }
+};
+
+struct ContactForces {
+  std::vector<Vec3> force;               // (m,3) N, force on i (on j: minus it); written by the contact law
+  std::vector<Vec3> torque_i;            // (m,3) N m, torque on i; written by the contact law and rolling
+  std::vector<Vec3> torque_j;            // (m,3) N m, torque on j; written by the contact law and rolling
+};
+
+struct Contacts {
+  ContactPairs pairs;
+  ContactForces forces;
+  std::vector<Vec3> tangential;          // (m,3) m (or N, incremental form): tangential history; contact law
+  std::vector<Vec3> rolling;             // (m,3) N m, rolling moment history; rolling system. Empty when
+                                         // the scene has no rolling resistance.
+  bool has_rolling = false;              // whether `rolling` is allocated
+
+  std::size_t size() const { return pairs.size(); }
+};
+
+}  // namespace sandcell

@@ -1,0 +1,41 @@
+#pragma once
+// World: one scene = Model + State + Scratch + Executor + the step graph built from the systems the
+// scene needs. The list of systems, in reference order, is made in one place: build_systems().
+#include "engine/step_graph.hpp"
+
+#include <cstdint>
+#include <vector>
+
+namespace sandcell {
+
+/// The systems a scene needs, in reference order. Systems the model does not use are not listed
+/// (and so neither scheduled nor allocated for).
+std::vector<SystemSpec> build_systems(const Model& model);
+
+/// Checks the model and the initial state; throws std::invalid_argument naming the offending value.
+void validate(const Model& model, const State& state);
+
+class World {
+ public:
+  World(Model model, State state, ExecutorConfig exec = {});
+  /// Same, with an explicit system list (tests, custom scenes).
+  World(Model model, State state, std::vector<SystemSpec> systems, ExecutorConfig exec = {});
+
+  /// Advances n steps.
+  void step(std::uint64_t n = 1);
+
+  const Model& model() const { return model_; }
+  State& state() { return state_; }
+  const State& state() const { return state_; }
+  Executor& executor() { return exec_; }
+  const StepGraph& graph() const { return graph_; }
+
+ private:
+  Model model_;
+  State state_;
+  Scratch scratch_;
+  Executor exec_;
+  StepGraph graph_;
+};
+
+}  // namespace sandcell

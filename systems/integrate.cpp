@@ -1,0 +1,67 @@
+#include "systems/integrate.hpp"
+
+namespace sandcell {
+
+namespace {
+// Half kick of linear and angular velocity over [b, e).
+void half_kick(double half_dt, const Vec3* __restrict f, const Vec3* __restrict t, const double* __restrict m,
+               const double* __restrict inv_i, Vec3* __restrict v, Vec3* __restrict w, std::size_t b,
+               std::size_t e) {
+  for (std::size_t k = b; k < e; ++k) {
+    v[k] += f[k] * (half_dt / m[k]);
+    w[k] += t[k] * (half_dt * inv_i[k]);
+  }
+}
+}  // namespace
+
+void IntegrateInitial::run(const Model& model, State& state, Scratch&, Executor& exec) {
+  const double dt = model.dt;
+  const auto& force = state.read<Component::particle_force>();
+  const auto& torque = state.read<Component::particle_torque>();
+  const auto& mass = state.read<Component::particle_mass>();
+  const auto& inv_inertia = state.read<Component::particle_inv_inertia>();
+  auto& position = state.write<Component::particle_position>();
+  auto& velocity = state.write<Component::particle_velocity>();
+  auto& omega = state.write<Component::particle_angular_velocity>();
+  Cell& cell = state.write<Component::cell>();
+
+  const Vec3 rate = cell.rate;
+  // Same factor for lengths and affine positions, so reduced coordinates are kept exactly in exact
+  // arithmetic, and to round-off in floating point.
+  const Vec3 new_length = cell.length + cell.length.cwiseProduct(rate) * dt;
+
+  const Vec3* f = force.data();
+  const Vec3* t = torque.data();
+  const double* m = mass.data();
+  const double* inv_i = inv_inertia.data();
+  Vec3* x = position.data();
+  Vec3* v = velocity.data();
+  Vec3* w = omega.data();
+  exec.parallel_for(position.size(), k_particle_grain, [&](std::size_t b, std::size_t e) {
+    half_kick(0.5 * dt, f, t, m, inv_i, v, w, b, e);
+    for (std::size_t k = b; k < e; ++k) {
+      Vec3 xk = x[k] + (v[k] + rate.cwiseProduct(x[k])) * dt;
+      for (int a = 0; a < 3; ++a) {
+        if (xk[a] >= new_length[a]) xk[a] -= new_length[a];
+        else if (xk[a] < 0.0) xk[a] += new_length[a];
+      }
+      x[k] = xk;
+    }
+  });
+  cell.length = new_length;
+}
+
+void IntegrateFinal::run(const Model& model, State& state, Scratch&, Executor& exec) {
+  const double dt = model.dt;
+  const Vec3* f = state.read<Component::particle_force>().data();
+  const Vec3* t = state.read<Component::particle_torque>().data();
+  const double* m = state.read<Component::particle_mass>().data();
+  const double* inv_i = state.read<Component::particle_inv_inertia>().data();
+  auto& velocity = state.write<Component::particle_velocity>();
+  Vec3* v = velocity.data();
+  Vec3* w = state.write<Component::particle_angular_velocity>().data();
+  exec.parallel_for(velocity.size(), k_particle_grain,
+                    [&](std::size_t b, std::size_t e) { half_kick(0.5 * dt, f, t, m, inv_i, v, w, b, e); });
+}
+
+}  // namespace sandcell

@@ -1,0 +1,40 @@
+#pragma once
+// Velocity-Verlet integration of spheres in a deforming orthorhombic periodic cell, in the form of
+// LAMMPS/LIGGGHTS nve/sphere, split into the two halves the step graph places around the forces:
+//
+//   integrate_initial: v~ += F/m dt/2, w += T/I dt/2, x += (v~ + D x) dt, L_k += D_kk L_k dt,
+//                      then x wrapped into [0, L_k) with the new lengths;
+//   integrate_final:   v~ += F/m dt/2, w += T/I dt/2.
+//
+// Newton's law acts on the fluctuating velocity v~; positions move with the full velocity
+// v~ + D x, so with v~ = 0 a particle keeps its reduced coordinates x_k / L_k (affine motion): the
+// cell and the positions are scaled by the same factor (1 + D_kk dt) each step.
+// Reads forces, torques, masses and inverse inertias; writes positions, velocities, angular
+// velocities, and the cell lengths (initial half only). Per-particle independent: a parallel_for.
+#include "engine/system.hpp"
+
+namespace sandcell {
+
+struct IntegrateInitial {
+  static constexpr std::string_view name = "integrate_initial";
+  static constexpr ComponentMask reads = mask_of({Component::particle_force, Component::particle_torque,
+                                                  Component::particle_mass, Component::particle_inv_inertia});
+  static constexpr ComponentMask writes =
+      mask_of({Component::particle_position, Component::particle_velocity,
+               Component::particle_angular_velocity, Component::cell});
+  static void run(const Model& model, State& state, Scratch& scratch, Executor& exec);
+};
+
+struct IntegrateFinal {
+  static constexpr std::string_view name = "integrate_final";
+  static constexpr ComponentMask reads = mask_of({Component::particle_force, Component::particle_torque,
+                                                  Component::particle_mass, Component::particle_inv_inertia});
+  static constexpr ComponentMask writes =
+      mask_of({Component::particle_velocity, Component::particle_angular_velocity});
+  static void run(const Model& model, State& state, Scratch& scratch, Executor& exec);
+};
+
+/// Particles per parallel_for chunk for per-particle loops.
+inline constexpr std::size_t k_particle_grain = 1024;
+
+}  // namespace sandcell

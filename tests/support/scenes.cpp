@@ -1,0 +1,28 @@
+#include "support/scenes.hpp"
+
+#include <random>
+
+namespace sandcell::test {
+
+State random_gas(const Model& model, std::size_t n, double box, double r_min, double r_max, double v_scale,
+                 double w_scale, std::uint64_t seed) {
+  State state;
+  state.cell.length = state.cell.length0 = Vec3::Constant(box);
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<double> u01(0.0, 1.0);
+  std::uniform_real_distribution<double> u11(-1.0, 1.0);
+  for (std::size_t k = 0; k < n; ++k) {
+    const double r = r_min + (r_max - r_min) * u01(rng);
+    const std::size_t i =
+        add_sphere(state, model, static_cast<ParticleId>(k), Vec3(u01(rng), u01(rng), u01(rng)) * box, r, 0);
+    state.particles.velocity[i] = Vec3(u11(rng), u11(rng), u11(rng)) * v_scale;
+    state.particles.angular_velocity[i] = Vec3(u11(rng), u11(rng), u11(rng)) * w_scale;
+  }
+  return state;
+}
+
+void throwing_assert_handler(const char*, int, const char*, const std::string& message) {
+  throw AssertionError(message);
+}
+
+}  // namespace sandcell::test
