@@ -17,11 +17,14 @@ std::string_view component_name(Component c) {
     case Component::particle_mass: return "particle_mass";
     case Component::particle_inv_inertia: return "particle_inv_inertia";
     case Component::particle_material: return "particle_material";
+    case Component::particle_reference: return "particle_reference";
     case Component::contact_pairs: return "contact_pairs";
     case Component::contact_forces: return "contact_forces";
     case Component::contact_tangential: return "contact_tangential";
     case Component::contact_rolling: return "contact_rolling";
     case Component::cell: return "cell";
+    case Component::contact_geometry: return "contact_geometry";
+    case Component::gather_index: return "gather_index";
     case Component::count: break;
   }
   return "unknown";

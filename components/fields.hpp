@@ -26,11 +26,15 @@ enum class Component : std::uint8_t {
   particle_mass,
   particle_inv_inertia,
   particle_material,
+  particle_reference,
   contact_pairs,
   contact_forces,
   contact_tangential,
   contact_rolling,
   cell,
+  // Scratch components (rebuilt, never checkpointed).
+  contact_geometry,
+  gather_index,
   count
 };
 inline constexpr std::size_t k_component_count = static_cast<std::size_t>(Component::count);
@@ -60,6 +64,7 @@ void for_each_particle_field(P& p, Fn&& fn) {
   fn(FieldInfo{"mass", "kg", "constant", Component::particle_mass}, p.mass);
   fn(FieldInfo{"inv_inertia", "1/(kg m^2)", "constant", Component::particle_inv_inertia}, p.inv_inertia);
   fn(FieldInfo{"material", "-", "constant", Component::particle_material}, p.material);
+  fn(FieldInfo{"reference_position", "m", "broadphase", Component::particle_reference}, p.reference_position);
 }
 
 /// Calls fn(info, vector) for every contact array that the scene allocates, in a fixed order.

@@ -19,6 +19,7 @@ struct Particles {
   std::vector<double> mass;              // (n) kg; constant
   std::vector<double> inv_inertia;       // (n) 1/(kg m^2), 1 / (2/5 m R^2); constant
   std::vector<std::uint32_t> material;   // (n) index into Model::materials; constant
+  std::vector<Vec3> reference_position;  // (n,3) m, position at the last neighbour-list build; broadphase
 
   std::size_t size() const { return id.size(); }
 };

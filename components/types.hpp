@@ -1,6 +1,7 @@
 #pragma once
 // Basic value types shared by every component and system.
 #include <Eigen/Core>
+#include <Eigen/Geometry>
 
 #include <array>
 #include <cstdint>

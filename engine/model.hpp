@@ -2,13 +2,59 @@
 // The Model: everything constant during a run. Validated once, when the scene is built.
 #include "components/material.hpp"
 
+#include <cstdint>
 #include <vector>
 
 namespace sandcell {
 
+/// Tangential force history (DESIGN 3.2).
+enum class TangentialModel {
+  history,      // LIGGGHTS `tangential history`: spring displacement u_t, F_t = -k_t u_t (default)
+  incremental,  // stored force, rotated with the contact frame, plus k_t times the increment
+};
+
+/// Rolling resistance (DESIGN 3.3).
+enum class RollingModel {
+  none,   // no rolling system scheduled, no rolling history allocated
+  epsd2,  // LIGGGHTS `rolling_friction epsd2` (default)
+  epsd,   // Ai et al. type C: spring + dashpot below the cap
+  cdt,    // Ai et al. type A: constant directional torque
+};
+
+struct ContactSettings {
+  bool enabled = true;                               // false: free flight (no broadphase, no forces)
+  TangentialModel tangential = TangentialModel::history;
+  RollingModel rolling = RollingModel::epsd2;
+  double rolling_damping = 0.0;  // -, eta_r of the epsd dashpot (DESIGN 3.3), >= 0
+  double skin = 0.3e-3;          // m, Verlet skin of the neighbour list, > 0
+  bool liggghts_compat = false;  // drop the affine term D r from relative velocities (DESIGN 3.1)
+};
+
+/// Effective contact constants of a pair of materials (mixing rule: DESIGN 3.2 for E*, G*;
+/// arithmetic mean of restitution, friction and rolling friction when the two materials differ).
+struct PairMaterial {
+  double e_star = 0.0;    // Pa, 1/E* = (1-nu_i^2)/E_i + (1-nu_j^2)/E_j
+  double g_star = 0.0;    // Pa, 1/G* = (2-nu_i)/G_i + (2-nu_j)/G_j
+  double beta = 0.0;      // -, ln(e)/sqrt(ln(e)^2 + pi^2), <= 0
+  double friction = 0.0;  // -, mu
+  double rolling_friction = 0.0;  // -, mu_r
+};
+
 struct Model {
   double dt = 0.0;                   // s, time step
   std::vector<Material> materials;   // indexed by particles.material
+  ContactSettings contact;
+
+  /// (n_materials^2) pair constants, row-major [mi * n + mj]; filled by finalize().
+  std::vector<PairMaterial> pairs;
+
+  const PairMaterial& pair(std::uint32_t mi, std::uint32_t mj) const { return pairs[mi * materials.size() + mj]; }
+  /// Computes the derived tables (pairs). Called by World; idempotent.
+  void finalize();
 };
+
+/// Rayleigh time of the smallest sphere: pi R_min sqrt(rho/G) / (0.1631 nu + 0.8766), s
+/// (minimum over materials present is the caller's business: pass that material's constants).
+double rayleigh_time(double r_min, const Material& material);
 
 }  // namespace sandcell

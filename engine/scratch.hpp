@@ -1,8 +1,84 @@
 #pragma once
 // Scratch: rebuilt every step or every neighbour rebuild; never checkpointed. Buffers keep their
 // capacity between steps so nothing is allocated inside a step once warmed up.
+// Systems reach the shared parts through read<C>() / write<C>() (checked like State access);
+// a system's private buffers (e.g. the broadphase bins) are its own business.
+#include "components/contacts.hpp"
+#include "components/fields.hpp"
+#include "engine/access.hpp"
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
 namespace sandcell {
 
-struct Scratch {};
+/// Per-contact geometry and stiffness of the current step, handed from the contact law to the
+/// rolling system. Entries of separated pairs hold overlap <= 0 and zero forces.
+struct ContactGeometry {
+  std::vector<Vec3> normal;          // (m,3) -, unit n from j to i; hertz_mindlin
+  std::vector<double> overlap;       // (m) m, delta = R_i + R_j - |r|; hertz_mindlin
+  std::vector<double> normal_force;  // (m) N, F_n = k_n delta - gamma_n v_n; hertz_mindlin
+  std::vector<double> stiffness_n;   // (m) N/m, k_n = 4/3 E* sqrt(R* delta); hertz_mindlin
+  std::vector<double> stiffness_t;   // (m) N/m, k_t = 8 G* sqrt(R* delta); hertz_mindlin
+};
+
+/// CSR index from particles to their pair slots, for the fixed-order per-particle force gather.
+/// entry = (pair index << 1) | side, side 0: the particle is i of the pair, 1: it is j.
+struct GatherIndex {
+  std::vector<std::uint32_t> offset;  // (n+1) -, entries of particle k: [offset[k], offset[k+1]); broadphase
+  std::vector<std::uint32_t> entry;   // (2m) -, sorted by pair index within a particle; broadphase
+};
+
+/// Broadphase private buffers and statistics.
+struct BroadphaseScratch {
+  std::vector<std::uint32_t> bin_start;     // (n_bins+1) -, CSR of particles per bin
+  std::vector<std::uint32_t> bin_particle;  // (n) -, particle indices sorted by bin
+  std::vector<std::uint32_t> particle_bin;  // (n) -, bin of each particle
+  std::vector<std::uint32_t> count;         // (n) -, new pairs per particle i
+  std::vector<std::uint32_t> start;         // (n+1) -, prefix sum of count
+  std::vector<std::uint32_t> old_start;     // (n+1) -, pair ranges of the previous list per particle i
+  ContactPairs next_pairs;                  // the list being built, swapped with the State's
+  std::vector<Vec3> next_tangential;        // (m,3) history for the list being built
+  std::vector<Vec3> next_rolling;           // (m,3) rolling history for the list being built
+  double cutoff = 0.0;                      // m, 2 r_max + skin of the last build
+  std::uint64_t builds = 0;                 // neighbour-list builds so far
+  std::string error;                        // set when the scene cannot be continued; checked by World
+};
+
+template <Component C>
+struct ScratchField;
+
+class Scratch {
+ public:
+  ContactGeometry geometry;
+  GatherIndex gather;
+  BroadphaseScratch broadphase;
+  // True while forces are evaluated at scene setup: contact laws then leave their history untouched
+  // (as LAMMPS/LIGGGHTS do in `run 0` setup), so setting up a scene does not advance it.
+  bool setup = false;
+
+  template <Component C>
+  const auto& read() const {
+    check_access(C, false);
+    return ScratchField<C>::get(*this);
+  }
+  template <Component C>
+  auto& write() {
+    check_access(C, true);
+    return ScratchField<C>::get(*this);
+  }
+};
+
+template <>
+struct ScratchField<Component::contact_geometry> {
+  template <class S>
+  static auto& get(S& s) { return s.geometry; }
+};
+template <>
+struct ScratchField<Component::gather_index> {
+  template <class S>
+  static auto& get(S& s) { return s.gather; }
+};
 
 }  // namespace sandcell

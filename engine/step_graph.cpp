@@ -4,9 +4,22 @@
 
 #include <oneapi/tbb/flow_graph.h>
 
+#include <chrono>
+
 namespace sandcell {
 
 namespace {
+// Runs system k with its access scope and adds its wall time to seconds[k].
+void timed_run(const SystemSpec& system, const AccessSets& access, double& seconds, const Model& model,
+               State& state, Scratch& scratch, Executor& exec) {
+  const auto t0 = std::chrono::steady_clock::now();
+  {
+    AccessScope scope(access);
+    system.run(model, state, scratch, exec);
+  }
+  seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
 bool conflict(const SystemSpec& a, const SystemSpec& b) {
   return (a.writes & (b.reads | b.writes)) != 0 || (a.reads & b.writes) != 0;
 }
@@ -25,6 +38,7 @@ struct StepGraph::Flow {
 StepGraph::StepGraph(std::vector<SystemSpec> systems, Executor& exec) : systems_(std::move(systems)), exec_(exec) {
   const std::size_t n = systems_.size();
   access_.resize(n);
+  seconds_.assign(n, 0.0);
   for (std::size_t k = 0; k < n; ++k) access_[k] = AccessSets{systems_[k].name, systems_[k].reads, systems_[k].writes};
 
   // Conflict edges, then the transitive closure (in reference order, a DAG by construction).
@@ -56,8 +70,7 @@ StepGraph::StepGraph(std::vector<SystemSpec> systems, Executor& exec) : systems_
     for (std::size_t k = 0; k < n; ++k) {
       flow_->nodes.push_back(std::make_unique<tbb::flow::continue_node<tbb::flow::continue_msg>>(
           flow_->graph, [this, k](const tbb::flow::continue_msg&) {
-            AccessScope scope(access_[k]);
-            systems_[k].run(*flow_->model, *flow_->state, *flow_->scratch, exec_);
+            timed_run(systems_[k], access_[k], seconds_[k], *flow_->model, *flow_->state, *flow_->scratch, exec_);
           }));
     }
     std::vector<bool> has_pred(n, false);
@@ -74,10 +87,8 @@ StepGraph::~StepGraph() = default;
 
 void StepGraph::run(const Model& model, State& state, Scratch& scratch) {
   if (!flow_) {
-    for (std::size_t k = 0; k < systems_.size(); ++k) {
-      AccessScope scope(access_[k]);
-      systems_[k].run(model, state, scratch, exec_);
-    }
+    for (std::size_t k = 0; k < systems_.size(); ++k)
+      timed_run(systems_[k], access_[k], seconds_[k], model, state, scratch, exec_);
     return;
   }
   flow_->model = &model;

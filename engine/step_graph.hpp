@@ -37,6 +37,11 @@ class StepGraph {
   bool ordered(std::size_t from, std::size_t to) const;
   const std::vector<std::pair<std::size_t, std::size_t>>& edges() const { return edges_; }
 
+  /// Wall time spent in each system since construction (or reset_timers), s. Systems that run
+  /// concurrently each count their own time.
+  const std::vector<double>& timers() const { return seconds_; }
+  void reset_timers() { seconds_.assign(systems_.size(), 0.0); }
+
   /// The graph as text: one line per system with what it waits for.
   std::string describe() const;
 
@@ -46,6 +51,7 @@ class StepGraph {
   std::vector<AccessSets> access_;
   std::vector<std::vector<bool>> reach_;  // reach_[a][b]: b runs after a
   std::vector<std::pair<std::size_t, std::size_t>> edges_;
+  std::vector<double> seconds_;
   Executor& exec_;
   std::unique_ptr<Flow> flow_;
 };

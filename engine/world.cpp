@@ -1,16 +1,25 @@
 #include "engine/world.hpp"
 
+#include "systems/broadphase.hpp"
+#include "systems/force_gather.hpp"
+#include "systems/hertz_mindlin.hpp"
 #include "systems/integrate.hpp"
+#include "systems/rolling.hpp"
 
 #include <cmath>
-#include <stdexcept>
 #include <string>
 
 namespace sandcell {
 
-std::vector<SystemSpec> build_systems(const Model&) {
+std::vector<SystemSpec> build_systems(const Model& model) {
   std::vector<SystemSpec> systems;
   systems.push_back(make_system<IntegrateInitial>());
+  if (model.contact.enabled) {
+    systems.push_back(make_system<Broadphase>());
+    systems.push_back(make_system<HertzMindlin>());
+    if (model.contact.rolling != RollingModel::none) systems.push_back(make_system<Rolling>());
+    systems.push_back(make_system<ForceGather>());
+  }
   systems.push_back(make_system<IntegrateFinal>());
   return systems;
 }
@@ -19,6 +28,24 @@ void validate(const Model& model, const State& state) {
   if (!(model.dt > 0.0) || !std::isfinite(model.dt))
     throw std::invalid_argument("dt = " + std::to_string(model.dt) + ": must be a finite value > 0 s");
   if (model.materials.empty()) throw std::invalid_argument("materials: at least one material is required");
+  for (std::size_t m = 0; m < model.materials.size(); ++m) {
+    const Material& mat = model.materials[m];
+    const std::string key = "materials[" + std::to_string(m) + "].";
+    if (!(mat.density > 0.0)) throw std::invalid_argument(key + "density = " + std::to_string(mat.density) + ": must be > 0 kg/m^3");
+    if (!(mat.young > 0.0)) throw std::invalid_argument(key + "young = " + std::to_string(mat.young) + ": must be > 0 Pa");
+    if (!(mat.poisson > -1.0 && mat.poisson < 0.5))
+      throw std::invalid_argument(key + "poisson = " + std::to_string(mat.poisson) + ": must be in (-1, 0.5)");
+    if (!(mat.restitution > 0.0 && mat.restitution <= 1.0))
+      throw std::invalid_argument(key + "restitution = " + std::to_string(mat.restitution) + ": must be in (0, 1]");
+    if (!(mat.friction >= 0.0)) throw std::invalid_argument(key + "friction = " + std::to_string(mat.friction) + ": must be >= 0");
+    if (!(mat.rolling_friction >= 0.0))
+      throw std::invalid_argument(key + "rolling_friction = " + std::to_string(mat.rolling_friction) + ": must be >= 0");
+  }
+  if (model.contact.enabled && !(model.contact.skin > 0.0))
+    throw std::invalid_argument("contact.skin = " + std::to_string(model.contact.skin) + ": must be > 0 m");
+  if (!(model.contact.rolling_damping >= 0.0))
+    throw std::invalid_argument("contact.rolling_damping = " + std::to_string(model.contact.rolling_damping) +
+                                ": must be >= 0");
   for (std::size_t k = 0; k < state.particles.size(); ++k)
     if (state.particles.material[k] >= model.materials.size())
       throw std::invalid_argument("particle " + std::to_string(state.particles.id[k]) + ": material index " +
@@ -30,17 +57,52 @@ void validate(const Model& model, const State& state) {
                                   ": must be > 0 m");
 }
 
-World::World(Model model, State state, ExecutorConfig exec)
-    : World(model, std::move(state), build_systems(model), exec) {}
+namespace {
+Model finalized(Model m) {
+  m.finalize();
+  return m;
+}
+State prepared(State s, const Model& m) {
+  validate(m, s);
+  s.contacts.has_rolling = m.contact.enabled && m.contact.rolling != RollingModel::none;
+  if (!s.contacts.has_rolling) s.contacts.rolling.clear();
+  if (s.particles.reference_position.size() != s.particles.size()) s.particles.reference_position.resize(s.particles.size());
+  return s;
+}
+}  // namespace
 
-World::World(Model model, State state, std::vector<SystemSpec> systems, ExecutorConfig exec)
-    : model_(std::move(model)), state_(std::move(state)), exec_(exec), graph_((validate(model_, state_), std::move(systems)), exec_) {}
+World::World(Model model, State state, ExecutorConfig exec, bool initial_forces)
+    : World(model, std::move(state), build_systems(model), exec, initial_forces) {}
+
+World::World(Model model, State state, std::vector<SystemSpec> systems, ExecutorConfig exec, bool initial_forces)
+    : model_(finalized(std::move(model))),
+      state_(prepared(std::move(state), model_)),
+      exec_(exec),
+      graph_(std::move(systems), exec_) {
+  if (!initial_forces || graph_.find(Broadphase::name) == graph_.size()) return;
+  // Forces of the initial configuration (LAMMPS `setup`): list build, contact law, gather, with
+  // contact history frozen. Only the systems present in the graph are run.
+  scratch_.setup = true;
+  build_neighbor_list(model_, state_, scratch_, exec_);
+  check_health();
+  for (std::string_view name : {HertzMindlin::name, Rolling::name, ForceGather::name}) {
+    const std::size_t k = graph_.find(name);
+    if (k < graph_.size()) run_system(graph_.system(k), model_, state_, scratch_, exec_);
+  }
+  scratch_.setup = false;
+}
+
+void World::check_health() const {
+  if (!scratch_.broadphase.error.empty())
+    throw SimulationError("step " + std::to_string(state_.clock.step) + ": " + scratch_.broadphase.error);
+}
 
 void World::step(std::uint64_t n) {
   for (std::uint64_t s = 0; s < n; ++s) {
     graph_.run(model_, state_, scratch_);
     ++state_.clock.step;
     state_.clock.time += model_.dt;
+    check_health();
   }
 }
 

@@ -4,6 +4,7 @@
 #include "engine/step_graph.hpp"
 
 #include <cstdint>
+#include <stdexcept>
 #include <vector>
 
 namespace sandcell {
@@ -15,22 +16,35 @@ std::vector<SystemSpec> build_systems(const Model& model);
 /// Checks the model and the initial state; throws std::invalid_argument naming the offending value.
 void validate(const Model& model, const State& state);
 
+/// A run that cannot continue (cell too narrow, instability): the message names the step, the
+/// particles and the quantity.
+struct SimulationError : std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
+
 class World {
  public:
-  World(Model model, State state, ExecutorConfig exec = {});
+  /// Builds the scene with build_systems(model). Unless `initial_forces` is false (a state that
+  /// already holds its forces, e.g. from a checkpoint), the neighbour list and the forces of the
+  /// initial configuration are computed first, without touching contact history.
+  World(Model model, State state, ExecutorConfig exec = {}, bool initial_forces = true);
   /// Same, with an explicit system list (tests, custom scenes).
-  World(Model model, State state, std::vector<SystemSpec> systems, ExecutorConfig exec = {});
+  World(Model model, State state, std::vector<SystemSpec> systems, ExecutorConfig exec = {},
+        bool initial_forces = true);
 
-  /// Advances n steps.
+  /// Advances n steps. Throws SimulationError when a system flags trouble.
   void step(std::uint64_t n = 1);
 
   const Model& model() const { return model_; }
   State& state() { return state_; }
   const State& state() const { return state_; }
+  const Scratch& scratch() const { return scratch_; }
   Executor& executor() { return exec_; }
   const StepGraph& graph() const { return graph_; }
 
  private:
+  void check_health() const;
+
   Model model_;
   State state_;
   Scratch scratch_;

@@ -34,6 +34,7 @@ int main(int argc, char** argv) {
   Model model;
   model.dt = 1e-6;
   model.materials.push_back(Material{});
+  model.contact.enabled = false;  // free flight
   State state;
   const double box = 0.05;  // m
   state.cell.length = state.cell.length0 = Vec3::Constant(box);

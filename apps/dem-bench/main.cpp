@@ -1,0 +1,160 @@
+// dem-bench: throughput and physics check on fixed scenes, with the settings the established codes
+// ran (shared/bench/README.md of the project's benchmark notes, copied into scenes/).
+//
+//   dem-bench [--scene FILE] [--steps N] [--threads T] [--deform RATE] [--rolling MODEL]
+//             [--tangential MODEL] [--compat] [--serial] [--json]
+//
+// Scene A: fixed periodic box. Scene B (--deform RATE): box shortened along z at a constant
+// engineering strain rate RATE (1/s), x and y fixed, as LIGGGHTS `fix deform ... erate -RATE`.
+// Prints particles, steps, threads, wall seconds of the step loop, particle-steps per second, mean
+// contacts per particle, neighbour-list builds, peak memory, the final contact stress tensor, and
+// the share of the step loop spent in each system (the engine's own timers).
+#include "engine/packing.hpp"
+#include "engine/world.hpp"
+#include "systems/stress.hpp"
+
+#include <sys/resource.h>
+
+#include <chrono>
+#include <cstdio>
+#include <cstdlib>
+#include <string>
+#include <string_view>
+
+#ifndef SANDCELL_BENCH_SCENE_DIR
+#define SANDCELL_BENCH_SCENE_DIR "."
+#endif
+
+using namespace sandcell;
+
+namespace {
+[[noreturn]] void usage_error(const std::string& message) {
+  std::fprintf(stderr, "dem-bench: %s\n", message.c_str());
+  std::exit(2);
+}
+
+double parse_number(const char* key, const char* text, double lo, double hi) {
+  char* end = nullptr;
+  const double v = std::strtod(text, &end);
+  if (end == text || *end != '\0' || !(v >= lo && v <= hi))
+    usage_error(std::string(key) + " = '" + text + "': must be a number in [" + std::to_string(lo) + ", " +
+                std::to_string(hi) + "]");
+  return v;
+}
+}  // namespace
+
+int main(int argc, char** argv) {
+  std::string scene = std::string(SANDCELL_BENCH_SCENE_DIR) + "/dense-20k.txt";
+  long steps = 2000;
+  int threads = 0;
+  double deform = 0.0;
+  bool json = false, serial = false;
+  Model model;
+  for (int a = 1; a < argc; ++a) {
+    const std::string_view arg = argv[a];
+    auto value = [&]() -> const char* {
+      if (a + 1 >= argc) usage_error(std::string(arg) + " needs a value");
+      return argv[++a];
+    };
+    if (arg == "--scene") scene = value();
+    else if (arg == "--steps") steps = static_cast<long>(parse_number("--steps", value(), 0, 1e9));
+    else if (arg == "--threads") threads = static_cast<int>(parse_number("--threads", value(), 1, 1024));
+    else if (arg == "--deform") deform = parse_number("--deform", value(), 0, 1e6);
+    else if (arg == "--compat") model.contact.liggghts_compat = true;
+    else if (arg == "--serial") serial = true;
+    else if (arg == "--json") json = true;
+    else if (arg == "--rolling") {
+      const std::string_view v = value();
+      if (v == "none") model.contact.rolling = RollingModel::none;
+      else if (v == "epsd2") model.contact.rolling = RollingModel::epsd2;
+      else if (v == "epsd") model.contact.rolling = RollingModel::epsd;
+      else if (v == "cdt") model.contact.rolling = RollingModel::cdt;
+      else usage_error("--rolling = '" + std::string(v) + "': allowed none, epsd2, epsd, cdt");
+    } else if (arg == "--tangential") {
+      const std::string_view v = value();
+      if (v == "history") model.contact.tangential = TangentialModel::history;
+      else if (v == "incremental") model.contact.tangential = TangentialModel::incremental;
+      else usage_error("--tangential = '" + std::string(v) + "': allowed history, incremental");
+    } else if (arg == "--help" || arg == "-h") {
+      std::printf("usage: dem-bench [--scene FILE] [--steps N] [--threads T] [--deform RATE] [--rolling none|epsd2|epsd|cdt]\n"
+                  "                 [--tangential history|incremental] [--compat] [--serial] [--json]\n");
+      return 0;
+    } else {
+      usage_error("unknown argument '" + std::string(arg) + "' (see --help)");
+    }
+  }
+
+  // The benchmark material and settings (identical in every code).
+  model.dt = 5.324636531947874e-07;  // s, 0.2 x Rayleigh time of the smallest (d = 5 mm) sphere
+  model.materials.push_back(Material{2650.0, 70e9, 0.3, 0.5, 0.5, 0.1});
+  model.contact.skin = 0.3e-3;  // m
+
+  Packing packing;
+  try {
+    packing = read_packing(scene);
+  } catch (const std::exception& e) {
+    usage_error(e.what());
+  }
+  const ExecutorConfig exec{serial ? Backend::serial : Backend::tbb, threads};
+  World world(model, make_state(model, packing), exec);
+  const std::size_t n = world.state().particles.size();
+  const double lz0 = world.state().cell.length[2];
+  const Mat3 s0 = contact_stress(world.state(), world.executor());
+  const std::size_t c0 = count_touching(world.state());
+  const std::uint64_t builds0 = world.scratch().broadphase.builds;
+
+  const_cast<StepGraph&>(world.graph()).reset_timers();
+  const auto t0 = std::chrono::steady_clock::now();
+  for (long s = 0; s < steps; ++s) {
+    if (deform > 0.0) {
+      // Engineering rate: L_z(t) = L_z0 (1 - RATE t), so D_zz = dL_z/dt / L_z = -RATE L_z0 / L_z.
+      world.state().cell.rate = Vec3(0.0, 0.0, -deform * lz0 / world.state().cell.length[2]);
+    }
+    world.step();
+  }
+  const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+
+  const Mat3 s1 = contact_stress(world.state(), world.executor());
+  const std::size_t c1 = count_touching(world.state());
+  rusage usage{};
+  getrusage(RUSAGE_SELF, &usage);
+  const double peak_mib = usage.ru_maxrss / 1024.0;
+  const double rate = wall > 0 ? double(n) * double(steps) / wall : 0.0;
+  const std::uint64_t builds = world.scratch().broadphase.builds - builds0;
+  const auto& graph = world.graph();
+
+  if (json) {
+    std::printf("{\"scene\": \"%s\", \"particles\": %zu, \"steps\": %ld, \"threads\": %d, \"backend\": \"%s\",\n"
+                " \"deform\": %.6g, \"compat\": %s, \"wall_s\": %.6f, \"particle_steps_per_s\": %.6e,\n"
+                " \"contacts_per_particle_start\": %.6f, \"contacts_per_particle\": %.6f, \"rebuilds\": %llu,\n"
+                " \"peak_mib\": %.1f, \"mean_stress_start_pa\": %.6e, \"mean_stress_pa\": %.6e,\n"
+                " \"stress_pa\": [%.6e, %.6e, %.6e, %.6e, %.6e, %.6e], \"lz\": %.9f,\n \"system_s\": {",
+                scene.c_str(), n, steps, world.executor().threads(), serial ? "serial" : "tbb", deform,
+                model.contact.liggghts_compat ? "true" : "false", wall, rate, 2.0 * c0 / n, 2.0 * c1 / n,
+                static_cast<unsigned long long>(builds), peak_mib, s0.trace() / 3, s1.trace() / 3, s1(0, 0), s1(1, 1),
+                s1(2, 2), s1(0, 1), s1(0, 2), s1(1, 2), world.state().cell.length[2]);
+    for (std::size_t k = 0; k < graph.size(); ++k)
+      std::printf("%s\"%s\": %.6f", k ? ", " : "", graph.system(k).name.c_str(), graph.timers()[k]);
+    std::printf("}}\n");
+    return 0;
+  }
+  std::printf("scene            %s%s\n", scene.c_str(), deform > 0 ? " (deforming, scene B)" : " (fixed box, scene A)");
+  std::printf("particles        %zu\n", n);
+  std::printf("steps            %ld\n", steps);
+  std::printf("threads          %d (%s)\n", world.executor().threads(), serial ? "serial backend" : "tbb");
+  std::printf("wall (step loop) %.3f s\n", wall);
+  std::printf("throughput       %.3f M particle-steps/s\n", rate / 1e6);
+  std::printf("contacts/particle %.4f at start, %.4f at end\n", 2.0 * c0 / n, 2.0 * c1 / n);
+  std::printf("rebuilds         %llu (%zu candidate pairs in the list)\n", static_cast<unsigned long long>(builds),
+              world.state().contacts.size());
+  std::printf("peak memory      %.1f MiB\n", peak_mib);
+  std::printf("mean stress      %.6g MPa at start, %.6g MPa at end (contacts, compression positive)\n",
+              s0.trace() / 3e6, s1.trace() / 3e6);
+  std::printf("stress (MPa)     xx %.6g yy %.6g zz %.6g xy %.4g xz %.4g yz %.4g\n", s1(0, 0) / 1e6, s1(1, 1) / 1e6,
+              s1(2, 2) / 1e6, s1(0, 1) / 1e6, s1(0, 2) / 1e6, s1(1, 2) / 1e6);
+  std::printf("time per system (share of the step loop):\n");
+  for (std::size_t k = 0; k < graph.size(); ++k)
+    std::printf("  %-18s %8.3f s  %5.1f %%\n", graph.system(k).name.c_str(), graph.timers()[k],
+                wall > 0 ? 100.0 * graph.timers()[k] / wall : 0.0);
+  return 0;
+}

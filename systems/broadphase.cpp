@@ -1,0 +1,252 @@
+#include "systems/broadphase.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <numeric>
+#include <string>
+
+namespace sandcell {
+
+namespace {
+
+struct Candidate {
+  ParticleId id_j;
+  Image image;
+  std::uint32_t j;
+};
+
+bool key_less(ParticleId a_id, const Image& a_img, ParticleId b_id, const Image& b_img) {
+  if (a_id != b_id) return a_id < b_id;
+  return a_img < b_img;
+}
+
+// Bins of the current cell: n_k >= 1 bins per axis, each at least `width` wide.
+struct Bins {
+  std::array<int, 3> n{};
+  Vec3 inv_length = Vec3::Zero();
+  int index(const std::array<int, 3>& b) const { return (b[2] * n[1] + b[1]) * n[0] + b[0]; }
+  std::array<int, 3> of(const Vec3& x) const {
+    std::array<int, 3> b{};
+    for (int a = 0; a < 3; ++a) b[a] = std::clamp(static_cast<int>(x[a] * inv_length[a] * n[a]), 0, n[a] - 1);
+    return b;
+  }
+};
+
+// Calls fn(j, image) for every particle j in the 27 bins around bin `b` with the image shift that
+// brings the bin next to b. With 1 or 2 bins on an axis, the three offsets give the same bin with
+// different shifts: distinct (j, image) candidates, as a pair may touch through several images.
+template <class Fn>
+void for_each_neighbor(const Bins& bins, const std::array<int, 3>& b, const std::vector<std::uint32_t>& start,
+                       const std::vector<std::uint32_t>& members, Fn&& fn) {
+  for (int oz = -1; oz <= 1; ++oz)
+    for (int oy = -1; oy <= 1; ++oy)
+      for (int ox = -1; ox <= 1; ++ox) {
+        const int o[3] = {ox, oy, oz};
+        std::array<int, 3> t{};
+        Image shift{};
+        for (int a = 0; a < 3; ++a) {
+          int v = b[a] + o[a];
+          std::int8_t s = 0;
+          if (v < 0) { v += bins.n[a]; s = -1; }
+          else if (v >= bins.n[a]) { v -= bins.n[a]; s = 1; }
+          t[a] = v;
+          shift[a] = s;
+        }
+        const int bin = bins.index(t);
+        for (std::uint32_t q = start[bin]; q < start[bin + 1]; ++q) fn(members[q], shift);
+      }
+}
+
+}  // namespace
+
+void build_neighbor_list(const Model& model, State& state, Scratch& scratch, Executor& exec) {
+  const auto& id = state.read<Component::particle_id>();
+  const auto& x = state.read<Component::particle_position>();
+  const auto& radius = state.read<Component::particle_radius>();
+  const Cell& cell = state.read<Component::cell>();
+  ContactPairs& pairs = state.write<Component::contact_pairs>();
+  auto& tangential = state.write<Component::contact_tangential>();
+  auto& rolling = state.write<Component::contact_rolling>();
+  auto& reference = state.write<Component::particle_reference>();
+  GatherIndex& gather = scratch.write<Component::gather_index>();
+  BroadphaseScratch& bp = scratch.broadphase;
+  const bool has_rolling = state.contacts.has_rolling;
+
+  const std::size_t n = x.size();
+  const double skin = model.contact.skin;
+  const double r_max = n == 0 ? 0.0 : *std::max_element(radius.begin(), radius.end());
+  const double cutoff = 2.0 * r_max + skin;
+  const Vec3 length = cell.length;
+  if (!(length.minCoeff() > cutoff)) {
+    int axis = 0;
+    length.minCoeff(&axis);
+    bp.error = "cell width L" + std::to_string(axis + 1) + " = " + std::to_string(length[axis]) +
+               " m is not larger than 2 r_max + skin = " + std::to_string(cutoff) +
+               " m (r_max = " + std::to_string(r_max) + " m, skin = " + std::to_string(skin) +
+               " m): a sphere would meet its own periodic image";
+    return;
+  }
+
+  // Bin the particles (counting sort, stable in particle index: deterministic).
+  Bins bins;
+  int n_bins = 1;
+  for (int a = 0; a < 3; ++a) {
+    bins.n[a] = std::max(1, static_cast<int>(std::floor(length[a] / cutoff)));
+    n_bins *= bins.n[a];
+  }
+  bins.inv_length = length.cwiseInverse();
+  bp.bin_start.assign(n_bins + 1, 0);
+  bp.particle_bin.resize(n);
+  bp.bin_particle.resize(n);
+  for (std::size_t k = 0; k < n; ++k) {
+    bp.particle_bin[k] = bins.index(bins.of(x[k]));
+    ++bp.bin_start[bp.particle_bin[k] + 1];
+  }
+  std::partial_sum(bp.bin_start.begin(), bp.bin_start.end(), bp.bin_start.begin());
+  {
+    std::vector<std::uint32_t>& fill = bp.count;  // reused as a cursor here
+    fill.assign(bp.bin_start.begin(), bp.bin_start.end() - 1);
+    for (std::size_t k = 0; k < n; ++k) bp.bin_particle[fill[bp.particle_bin[k]]++] = static_cast<std::uint32_t>(k);
+  }
+
+  // Candidate test: within r_i + r_j + skin of i, counted once from the smaller id.
+  const auto visit = [&](std::size_t i, auto&& emit) {
+    const std::array<int, 3> b = bins.of(x[i]);
+    const Vec3 xi = x[i];
+    const double ri = radius[i] + skin;
+    const ParticleId idi = id[i];
+    for_each_neighbor(bins, b, bp.bin_start, bp.bin_particle, [&](std::uint32_t j, const Image& img) {
+      if (id[j] <= idi) return;
+      const Vec3 r = xi - (x[j] + Vec3(img[0] * length[0], img[1] * length[1], img[2] * length[2]));
+      const double cut = ri + radius[j];
+      if (r.squaredNorm() < cut * cut) emit(j, img);
+    });
+  };
+
+  // Pass 1: count per particle; prefix sum gives each particle's slot range.
+  bp.count.assign(n, 0);
+  exec.parallel_for(n, 256, [&](std::size_t b, std::size_t e) {
+    for (std::size_t i = b; i < e; ++i) {
+      std::uint32_t c = 0;
+      visit(i, [&](std::uint32_t, const Image&) { ++c; });
+      bp.count[i] = c;
+    }
+  });
+  bp.start.resize(n + 1);
+  bp.start[0] = 0;
+  for (std::size_t i = 0; i < n; ++i) bp.start[i + 1] = bp.start[i] + bp.count[i];
+  const std::size_t m = bp.start[n];
+
+  // Old list ranges per particle i (the old list is sorted by i).
+  const std::size_t m_old = pairs.size();
+  bp.old_start.assign(n + 1, 0);
+  for (std::size_t k = 0; k < m_old; ++k) ++bp.old_start[pairs.i[k] + 1];
+  std::partial_sum(bp.old_start.begin(), bp.old_start.end(), bp.old_start.begin());
+
+  // Pass 2: fill each particle's slots, sort them canonically, carry history by key.
+  ContactPairs& next = bp.next_pairs;
+  next.id_i.resize(m);
+  next.id_j.resize(m);
+  next.image.resize(m);
+  next.i.resize(m);
+  next.j.resize(m);
+  bp.next_tangential.resize(m);
+  if (has_rolling) bp.next_rolling.resize(m);
+  exec.parallel_for(n, 256, [&](std::size_t b, std::size_t e) {
+    for (std::size_t i = b; i < e; ++i) {
+      const std::uint32_t s0 = bp.start[i];
+      std::uint32_t s = s0;
+      visit(i, [&](std::uint32_t j, const Image& img) {
+        next.id_j[s] = id[j];
+        next.image[s] = img;
+        next.j[s] = j;
+        ++s;
+      });
+      // Insertion sort by (id_j, image): a particle has a few tens of candidates at most.
+      for (std::uint32_t a = s0 + 1; a < s; ++a)
+        for (std::uint32_t c = a; c > s0 && key_less(next.id_j[c], next.image[c], next.id_j[c - 1], next.image[c - 1]);
+             --c) {
+          std::swap(next.id_j[c], next.id_j[c - 1]);
+          std::swap(next.image[c], next.image[c - 1]);
+          std::swap(next.j[c], next.j[c - 1]);
+        }
+      for (std::uint32_t c = s0; c < s; ++c) {
+        next.id_i[c] = id[i];
+        next.i[c] = static_cast<std::uint32_t>(i);
+        // History: the same (id_i, id_j, image) in the old list of i, if any.
+        bp.next_tangential[c].setZero();
+        if (has_rolling) bp.next_rolling[c].setZero();
+        for (std::uint32_t o = bp.old_start[i]; o < bp.old_start[i + 1]; ++o)
+          if (pairs.id_j[o] == next.id_j[c] && pairs.image[o] == next.image[c]) {
+            bp.next_tangential[c] = tangential[o];
+            if (has_rolling) bp.next_rolling[c] = rolling[o];
+            break;
+          }
+      }
+    }
+  });
+  std::swap(pairs.id_i, next.id_i);
+  std::swap(pairs.id_j, next.id_j);
+  std::swap(pairs.image, next.image);
+  std::swap(pairs.i, next.i);
+  std::swap(pairs.j, next.j);
+  std::swap(tangential, bp.next_tangential);
+  if (has_rolling) std::swap(rolling, bp.next_rolling);
+  pairs.reference_length = length;
+  reference.assign(x.begin(), x.end());
+
+  // CSR gather index: each pair appears under i (side 0) and j (side 1), in ascending pair order.
+  gather.offset.assign(n + 1, 0);
+  for (std::size_t k = 0; k < m; ++k) {
+    ++gather.offset[pairs.i[k] + 1];
+    ++gather.offset[pairs.j[k] + 1];
+  }
+  std::partial_sum(gather.offset.begin(), gather.offset.end(), gather.offset.begin());
+  gather.entry.resize(2 * m);
+  bp.count.assign(gather.offset.begin(), gather.offset.end() - 1);
+  for (std::size_t k = 0; k < m; ++k) {
+    const auto kk = static_cast<std::uint32_t>(k);
+    gather.entry[bp.count[pairs.i[k]]++] = kk << 1;
+    gather.entry[bp.count[pairs.j[k]]++] = (kk << 1) | 1u;
+  }
+  bp.cutoff = cutoff;
+  ++bp.builds;
+}
+
+void Broadphase::run(const Model& model, State& state, Scratch& scratch, Executor& exec) {
+  const auto& x = state.read<Component::particle_position>();
+  const auto& reference = state.read<Component::particle_reference>();
+  const Cell& cell = state.read<Component::cell>();
+  const ContactPairs& pairs = state.read<Component::contact_pairs>();
+  BroadphaseScratch& bp = scratch.broadphase;
+
+  bool rebuild = pairs.reference_length.minCoeff() <= 0.0 || reference.size() != x.size();
+  if (!rebuild) {
+    if (bp.cutoff <= 0.0) {  // e.g. after a restart: scratch is not checkpointed
+      const auto& radius = state.read<Component::particle_radius>();
+      bp.cutoff = 2.0 * *std::max_element(radius.begin(), radius.end()) + model.contact.skin;
+    }
+    const Vec3 length = cell.length;
+    const Vec3 inv_length = length.cwiseInverse();
+    const Vec3 inv_ref = pairs.reference_length.cwiseInverse();
+    // Largest non-affine displacement since the build: the change of reduced coordinates, taken
+    // to the nearest image (a wrap changes s by one), scaled by the current lengths.
+    const double d2 = exec.deterministic_reduce(
+        x.size(), 4096, 0.0,
+        [&](std::size_t b, std::size_t e) {
+          double worst = 0.0;
+          for (std::size_t k = b; k < e; ++k) {
+            Vec3 ds = x[k].cwiseProduct(inv_length) - reference[k].cwiseProduct(inv_ref);
+            for (int a = 0; a < 3; ++a) ds[a] -= std::nearbyint(ds[a]);
+            worst = std::max(worst, ds.cwiseProduct(length).squaredNorm());
+          }
+          return worst;
+        },
+        [](double a, double b) { return std::max(a, b); });
+    const double stretch = (length.cwiseProduct(inv_ref) - Vec3::Ones()).cwiseAbs().maxCoeff();
+    rebuild = 2.0 * std::sqrt(d2) + stretch * bp.cutoff > model.contact.skin;
+  }
+  if (rebuild) build_neighbor_list(model, state, scratch, exec);
+}
+
+}  // namespace sandcell

@@ -1,0 +1,18 @@
+#pragma once
+// force_gather: per-particle sums of the pair slots, over the CSR gather index, in ascending pair
+// order: F_k = sum(F on i where k is i) - sum(F on i where k is j); torques likewise from the
+// torque_i / torque_j slots. No atomics; the order of every sum is fixed by the pair list, so the
+// result is bitwise the same for any thread count. Reads contact_forces and gather_index; writes
+// particle forces and torques (all of them: a particle without contacts gets zero).
+#include "engine/system.hpp"
+
+namespace sandcell {
+
+struct ForceGather {
+  static constexpr std::string_view name = "force_gather";
+  static constexpr ComponentMask reads = mask_of({Component::contact_forces, Component::gather_index});
+  static constexpr ComponentMask writes = mask_of({Component::particle_force, Component::particle_torque});
+  static void run(const Model& model, State& state, Scratch& scratch, Executor& exec);
+};
+
+}  // namespace sandcell

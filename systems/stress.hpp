@@ -1,0 +1,16 @@
+#pragma once
+// Contact (Love-Weber) stress of the periodic cell, DESIGN 3.5: S = (1/V) sum_c f_c (x) r_c with f_c
+// the force on i and r_c = x_i - (x_j + H n) the branch vector; compression positive for repulsive
+// contacts. Deterministic reduction over the pair list. The stress homogenizer system builds on it.
+#include "engine/executor.hpp"
+#include "engine/state.hpp"
+
+namespace sandcell {
+
+/// Symmetrized contact stress tensor, Pa, compression positive.
+Mat3 contact_stress(const State& state, Executor& exec);
+
+/// Number of pairs with positive overlap.
+std::size_t count_touching(const State& state);
+
+}  // namespace sandcell
