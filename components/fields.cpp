@@ -23,7 +23,6 @@ std::string_view component_name(Component c) {
     case Component::contact_tangential: return "contact_tangential";
     case Component::contact_rolling: return "contact_rolling";
     case Component::cell: return "cell";
-    case Component::contact_geometry: return "contact_geometry";
     case Component::gather_index: return "gather_index";
     case Component::count: break;
   }

@@ -33,7 +33,6 @@ enum class Component : std::uint8_t {
   contact_rolling,
   cell,
   // Scratch components (rebuilt, never checkpointed).
-  contact_geometry,
   gather_index,
   count
 };

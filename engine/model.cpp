@@ -19,6 +19,7 @@ void Model::finalize() {
       const double log_e = std::log(e);
       p.beta = log_e / std::sqrt(log_e * log_e + std::numbers::pi * std::numbers::pi);
       p.friction = a == b ? i.friction : 0.5 * (i.friction + j.friction);
+      p.damping_ratio_t = std::sqrt(4.0 * p.g_star / p.e_star);
       p.rolling_friction = a == b ? i.rolling_friction : 0.5 * (i.rolling_friction + j.rolling_friction);
     }
 }

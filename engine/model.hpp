@@ -38,6 +38,7 @@ struct PairMaterial {
   double beta = 0.0;      // -, ln(e)/sqrt(ln(e)^2 + pi^2), <= 0
   double friction = 0.0;  // -, mu
   double rolling_friction = 0.0;  // -, mu_r
+  double damping_ratio_t = 0.0;   // -, gamma_t / gamma_n = sqrt(S_t / S_n) = sqrt(4 G* / E*)
 };
 
 struct Model {

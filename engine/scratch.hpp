@@ -13,16 +13,6 @@
 
 namespace sandcell {
 
-/// Per-contact geometry and stiffness of the current step, handed from the contact law to the
-/// rolling system. Entries of separated pairs hold overlap <= 0 and zero forces.
-struct ContactGeometry {
-  std::vector<Vec3> normal;          // (m,3) -, unit n from j to i; hertz_mindlin
-  std::vector<double> overlap;       // (m) m, delta = R_i + R_j - |r|; hertz_mindlin
-  std::vector<double> normal_force;  // (m) N, F_n = k_n delta - gamma_n v_n; hertz_mindlin
-  std::vector<double> stiffness_n;   // (m) N/m, k_n = 4/3 E* sqrt(R* delta); hertz_mindlin
-  std::vector<double> stiffness_t;   // (m) N/m, k_t = 8 G* sqrt(R* delta); hertz_mindlin
-};
-
 /// CSR index from particles to their pair slots, for the fixed-order per-particle force gather.
 /// entry = (pair index << 1) | side, side 0: the particle is i of the pair, 1: it is j.
 struct GatherIndex {
@@ -51,7 +41,6 @@ struct ScratchField;
 
 class Scratch {
  public:
-  ContactGeometry geometry;
   GatherIndex gather;
   BroadphaseScratch broadphase;
   // True while forces are evaluated at scene setup: contact laws then leave their history untouched
@@ -70,11 +59,6 @@ class Scratch {
   }
 };
 
-template <>
-struct ScratchField<Component::contact_geometry> {
-  template <class S>
-  static auto& get(S& s) { return s.geometry; }
-};
 template <>
 struct ScratchField<Component::gather_index> {
   template <class S>

@@ -4,7 +4,6 @@
 #include "systems/force_gather.hpp"
 #include "systems/hertz_mindlin.hpp"
 #include "systems/integrate.hpp"
-#include "systems/rolling.hpp"
 
 #include <cmath>
 #include <string>
@@ -17,7 +16,6 @@ std::vector<SystemSpec> build_systems(const Model& model) {
   if (model.contact.enabled) {
     systems.push_back(make_system<Broadphase>());
     systems.push_back(make_system<HertzMindlin>());
-    if (model.contact.rolling != RollingModel::none) systems.push_back(make_system<Rolling>());
     systems.push_back(make_system<ForceGather>());
   }
   systems.push_back(make_system<IntegrateFinal>());
@@ -85,7 +83,7 @@ World::World(Model model, State state, std::vector<SystemSpec> systems, Executor
   scratch_.setup = true;
   build_neighbor_list(model_, state_, scratch_, exec_);
   check_health();
-  for (std::string_view name : {HertzMindlin::name, Rolling::name, ForceGather::name}) {
+  for (std::string_view name : {HertzMindlin::name, ForceGather::name}) {
     const std::size_t k = graph_.find(name);
     if (k < graph_.size()) run_system(graph_.system(k), model_, state_, scratch_, exec_);
   }

@@ -1,5 +1,7 @@
 #include "systems/hertz_mindlin.hpp"
 
+#include "systems/rolling.hpp"
+
 #include <cmath>
 
 namespace sandcell {
@@ -8,37 +10,37 @@ namespace {
 
 constexpr double k_two_sqrt_5_6 = 1.8257418583505538;  // 2 sqrt(5/6)
 
-// Per-pair inputs gathered by the loop; the evaluator is the law itself, independent of storage.
 struct PairKinematics {
-  Vec3 n;          // unit normal, from j to i
-  double overlap;  // m
-  double r_star;   // m
-  double m_star;   // kg
-  double c_i, c_j; // m, lever arms to the contact point
-  Vec3 v_rel;      // m/s, at the centres (fluctuating difference + affine D r)
-  Vec3 w_i, w_j;   // rad/s
+  Vec3 n;           // unit normal, from j to i
+  double overlap;   // m
+  double r_star;    // m
+  double m_star;    // kg
+  double c_i, c_j;  // m, lever arms from the centres to the contact point
+  Vec3 v_rel;       // m/s, at the centres (fluctuating difference + affine D r)
+  Vec3 w_i, w_j;    // rad/s
 };
 
-struct PairResult {
+struct NormalTangential {
   Vec3 f_t;         // N, tangential force on i
   double f_n;       // N, normal force (signed)
   double k_n, k_t;  // N/m
 };
 
-// Hertz-Mindlin, LIGGGHTS-form tangential history (u_t, m) or incremental force history (F_s, N).
+// Hertz-Mindlin with the LIGGGHTS-form displacement history (u_t, m) or the incremental force
+// history (F_s, N).
 template <TangentialModel Tangential>
 struct HertzMindlinEvaluator {
   const PairMaterial& mat;
   double dt;
   bool update_history;
 
-  PairResult evaluate(const PairKinematics& c, Vec3& history) const {
+  [[gnu::always_inline]] inline NormalTangential evaluate(const PairKinematics& c, Vec3& history) const {
     const double sqrt_rd = std::sqrt(c.r_star * c.overlap);
     const double s_n = 2.0 * mat.e_star * sqrt_rd;
-    const double k_n = (4.0 / 3.0) * mat.e_star * sqrt_rd;
-    const double k_t = 8.0 * mat.g_star * sqrt_rd;  // = S_t
+    const double k_n = (2.0 / 3.0) * s_n;             // 4/3 E* sqrt(R* delta)
+    const double k_t = 8.0 * mat.g_star * sqrt_rd;    // = S_t
     const double gamma_n = -k_two_sqrt_5_6 * mat.beta * std::sqrt(s_n * c.m_star);
-    const double gamma_t = -k_two_sqrt_5_6 * mat.beta * std::sqrt(k_t * c.m_star);
+    const double gamma_t = gamma_n * mat.damping_ratio_t;  // -2 sqrt(5/6) beta sqrt(S_t m*)
 
     const double v_n = c.v_rel.dot(c.n);
     const double f_n = k_n * c.overlap - gamma_n * v_n;
@@ -48,7 +50,8 @@ struct HertzMindlinEvaluator {
     Vec3 f_t;
     Vec3 h = history;
     if constexpr (Tangential == TangentialModel::history) {
-      // u_t += v_t dt, projected on the tangent plane; F_t = -k_t u_t; Coulomb cap without damping.
+      // u_t += v_t dt, projected on the tangent plane; F_t = -k_t u_t; at the Coulomb cap the
+      // force is scaled to mu |F_n| (no damping) and u_t set to -F_t / k_t.
       if (update_history) h += v_t * dt;
       h -= h.dot(c.n) * c.n;
       f_t = -k_t * h;
@@ -60,13 +63,13 @@ struct HertzMindlinEvaluator {
         f_t -= gamma_t * v_t;
       }
     } else {
-      // Stored elastic tangential force: rotated into the new tangent plane (projection, magnitude
-      // kept), plus k_t times the tangential displacement increment; Coulomb cap on it.
-      const double old_mag = h.norm();
+      // Stored elastic tangential force, rotated into the new tangent plane (projected, magnitude
+      // kept), plus -k_t times the displacement increment; Coulomb cap on it.
+      const double old2 = h.squaredNorm();
       h -= h.dot(c.n) * c.n;
-      const double new_mag = h.norm();
-      if (new_mag > 0.0) h *= old_mag / new_mag;
-      if (update_history) h -= k_t * dt * v_t;
+      const double new2 = h.squaredNorm();
+      if (new2 > 0.0) h *= std::sqrt(old2 / new2);
+      if (update_history) h -= (k_t * dt) * v_t;
       const double f2 = h.squaredNorm();
       if (f2 > f_cap * f_cap) {
         h *= f_cap / std::sqrt(f2);
@@ -76,11 +79,11 @@ struct HertzMindlinEvaluator {
       }
     }
     history = h;
-    return PairResult{f_t, f_n, k_n, k_t};
+    return NormalTangential{f_t, f_n, k_n, k_t};
   }
 };
 
-template <TangentialModel Tangential, bool Affine>
+template <TangentialModel Tangential, RollingModel Roll, bool Affine>
 void contact_loop(const Model& model, State& state, Scratch& scratch, Executor& exec) {
   const ContactPairs& pairs = state.read<Component::contact_pairs>();
   const Vec3* __restrict x = state.read<Component::particle_position>().data();
@@ -91,18 +94,14 @@ void contact_loop(const Model& model, State& state, Scratch& scratch, Executor& 
   const std::uint32_t* __restrict material = state.read<Component::particle_material>().data();
   const Cell& cell = state.read<Component::cell>();
   ContactForces& out = state.write<Component::contact_forces>();
-  auto& history = state.write<Component::contact_tangential>();
-  ContactGeometry& geo = scratch.write<Component::contact_geometry>();
+  auto& tangential = state.write<Component::contact_tangential>();
+  auto& rolling = state.write<Component::contact_rolling>();
 
   const std::size_t m = pairs.size();
   out.force.resize(m);
   out.torque_i.resize(m);
   out.torque_j.resize(m);
-  geo.normal.resize(m);
-  geo.overlap.resize(m);
-  geo.normal_force.resize(m);
-  geo.stiffness_n.resize(m);
-  geo.stiffness_t.resize(m);
+  if constexpr (Roll != RollingModel::none) rolling.resize(m);
 
   const Vec3 length = cell.length;
   const Vec3 rate = cell.rate;
@@ -114,7 +113,9 @@ void contact_loop(const Model& model, State& state, Scratch& scratch, Executor& 
   Vec3* __restrict force = out.force.data();
   Vec3* __restrict torque_i = out.torque_i.data();
   Vec3* __restrict torque_j = out.torque_j.data();
-  Vec3* __restrict hist = history.data();
+  Vec3* __restrict hist_t = tangential.data();
+  Vec3* __restrict hist_r = rolling.data();
+  const RollingEvaluator<Roll> roll{model.dt, model.contact.rolling_damping, update_history};
 
   exec.parallel_for(m, k_contact_grain, [&](std::size_t b, std::size_t e) {
     for (std::size_t k = b; k < e; ++k) {
@@ -127,17 +128,13 @@ void contact_loop(const Model& model, State& state, Scratch& scratch, Executor& 
         force[k].setZero();
         torque_i[k].setZero();
         torque_j[k].setZero();
-        hist[k].setZero();  // history resets when the contact opens
-        geo.normal[k].setZero();
-        geo.overlap[k] = 0.0;
-        geo.normal_force[k] = 0.0;
-        geo.stiffness_n[k] = 0.0;
-        geo.stiffness_t[k] = 0.0;
+        hist_t[k].setZero();  // history resets when the contact opens
+        if constexpr (Roll != RollingModel::none) hist_r[k].setZero();
         continue;
       }
       const double dist = std::sqrt(r2);
       PairKinematics c;
-      c.n = r / dist;
+      c.n = r * (1.0 / dist);
       c.overlap = sum_r - dist;
       c.r_star = radius[i] * radius[j] / sum_r;
       c.m_star = mass[i] * mass[j] / (mass[i] + mass[j]);
@@ -147,33 +144,55 @@ void contact_loop(const Model& model, State& state, Scratch& scratch, Executor& 
       if constexpr (Affine) c.v_rel += rate.cwiseProduct(r);
       c.w_i = w[i];
       c.w_j = w[j];
-      const HertzMindlinEvaluator<Tangential> law{model.pairs[material[i] * n_mat + material[j]],
-                                                  model.dt, update_history};
-      const PairResult res = law.evaluate(c, hist[k]);
-      const Vec3& f_t = res.f_t;
-      force[k] = res.f_n * c.n + f_t;
-      torque_i[k] = -c.c_i * c.n.cross(f_t);
-      torque_j[k] = -c.c_j * c.n.cross(f_t);
-      geo.normal[k] = c.n;
-      geo.overlap[k] = c.overlap;
-      geo.normal_force[k] = res.f_n;
-      geo.stiffness_n[k] = res.k_n;
-      geo.stiffness_t[k] = res.k_t;
+      const PairMaterial& mat = n_mat == 1 ? model.pairs[0] : model.pairs[material[i] * n_mat + material[j]];
+      const HertzMindlinEvaluator<Tangential> law{mat, model.dt, update_history};
+      const NormalTangential nt = law.evaluate(c, hist_t[k]);
+      const Vec3 arm_torque = c.n.cross(nt.f_t);  // torque on i is -c_i n x F_t, on j -c_j n x F_t
+      Vec3 t_i = -c.c_i * arm_torque;
+      Vec3 t_j = -c.c_j * arm_torque;
+      if constexpr (Roll != RollingModel::none) {
+        double i_r = 0.0;
+        if constexpr (Roll == RollingModel::epsd) {
+          const double a = mass[i] * radius[i] * radius[i];
+          const double d = mass[j] * radius[j] * radius[j];
+          i_r = 1.4 * a * d / (a + d);
+        }
+        const Vec3 moment = roll.evaluate(
+            RollingInput{c.n, c.w_i - c.w_j, c.overlap, nt.f_n, nt.k_n, nt.k_t, c.r_star, i_r, mat.rolling_friction},
+            hist_r[k]);
+        t_i -= moment;
+        t_j += moment;
+      }
+      force[k] = nt.f_n * c.n + nt.f_t;
+      torque_i[k] = t_i;
+      torque_j[k] = t_j;
     }
   });
+}
+
+template <TangentialModel T, RollingModel R>
+void dispatch_affine(const Model& model, State& state, Scratch& scratch, Executor& exec) {
+  if (model.contact.liggghts_compat) contact_loop<T, R, false>(model, state, scratch, exec);
+  else contact_loop<T, R, true>(model, state, scratch, exec);
+}
+
+template <TangentialModel T>
+void dispatch_rolling(const Model& model, State& state, Scratch& scratch, Executor& exec) {
+  switch (model.contact.rolling) {
+    case RollingModel::none: dispatch_affine<T, RollingModel::none>(model, state, scratch, exec); break;
+    case RollingModel::epsd2: dispatch_affine<T, RollingModel::epsd2>(model, state, scratch, exec); break;
+    case RollingModel::epsd: dispatch_affine<T, RollingModel::epsd>(model, state, scratch, exec); break;
+    case RollingModel::cdt: dispatch_affine<T, RollingModel::cdt>(model, state, scratch, exec); break;
+  }
 }
 
 }  // namespace
 
 void HertzMindlin::run(const Model& model, State& state, Scratch& scratch, Executor& exec) {
-  const bool affine = !model.contact.liggghts_compat;
-  if (model.contact.tangential == TangentialModel::history) {
-    if (affine) contact_loop<TangentialModel::history, true>(model, state, scratch, exec);
-    else contact_loop<TangentialModel::history, false>(model, state, scratch, exec);
-  } else {
-    if (affine) contact_loop<TangentialModel::incremental, true>(model, state, scratch, exec);
-    else contact_loop<TangentialModel::incremental, false>(model, state, scratch, exec);
-  }
+  if (model.contact.tangential == TangentialModel::history)
+    dispatch_rolling<TangentialModel::history>(model, state, scratch, exec);
+  else
+    dispatch_rolling<TangentialModel::incremental>(model, state, scratch, exec);
 }
 
 }  // namespace sandcell

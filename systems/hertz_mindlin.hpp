@@ -1,14 +1,18 @@
 #pragma once
-// hertz_mindlin: Hertz normal force with viscous damping and Mindlin no-slip tangential force with
-// Coulomb cap (DESIGN 3.2), as LIGGGHTS `model hertz tangential history`, or with an incremental
-// force history (ContactSettings::tangential).
+// hertz_mindlin: the contact pass. Hertz normal force with viscous damping and Mindlin no-slip
+// tangential force with a Coulomb cap (DESIGN 3.2), as LIGGGHTS `model hertz tangential history`,
+// or with an incremental force history (ContactSettings::tangential); plus the rolling resistance
+// evaluator of systems/rolling.hpp when the model has one (DESIGN 3.3).
 //
 // Reads the pair list, positions, fluctuating and angular velocities, radii, masses, materials and
-// the cell. Writes, per pair slot: the force on i and the torques on i and j (contact_forces), the
-// tangential history (contact_tangential), and the geometry the rolling system needs
-// (contact_geometry). One parallel_for over pairs; each pair writes only its own slots.
-// Relative velocity at the contact includes the affine part D r unless liggghts_compat.
-// Separated pairs get zero force and zero history.
+// the cell. Writes, per pair slot, the force on i and the torques on i and j (contact_forces), the
+// tangential history (contact_tangential) and the rolling history (contact_rolling). One
+// parallel_for over pairs; each pair writes only its own slots, so no atomics are needed and the
+// per-particle sums are left to force_gather in a fixed order.
+// The relative velocity at the contact includes the affine part D r unless liggghts_compat.
+// Pairs in the list that do not touch get zero force and zero history (history resets when a
+// contact opens). The law is instantiated per (tangential model, rolling model, affine term), so
+// the hot loop has no run-time switches.
 #include "engine/system.hpp"
 
 namespace sandcell {
@@ -20,7 +24,7 @@ struct HertzMindlin {
                Component::particle_angular_velocity, Component::particle_radius, Component::particle_mass,
                Component::particle_material, Component::cell});
   static constexpr ComponentMask writes =
-      mask_of({Component::contact_forces, Component::contact_tangential, Component::contact_geometry});
+      mask_of({Component::contact_forces, Component::contact_tangential, Component::contact_rolling});
   static void run(const Model& model, State& state, Scratch& scratch, Executor& exec);
 };
 
