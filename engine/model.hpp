@@ -28,6 +28,9 @@ struct ContactSettings {
   double rolling_damping = 0.0;  // -, eta_r of the epsd dashpot (DESIGN 3.3), >= 0
   double skin = 0.3e-3;          // m, Verlet skin of the neighbour list, > 0
   bool liggghts_compat = false;  // drop the affine term D r from relative velocities (DESIGN 3.1)
+  // Steps between spatial sorts of the particle arrays (Morton order of position; 0: never).
+  // Sorting keeps neighbours close in memory; it changes array indices, never ids.
+  int sort_interval = 0;
 };
 
 /// Effective contact constants of a pair of materials (mixing rule: DESIGN 3.2 for E*, G*;

@@ -13,11 +13,14 @@
 
 namespace sandcell {
 
-/// CSR index from particles to their pair slots, for the fixed-order per-particle force gather.
-/// entry = (pair index << 1) | side, side 0: the particle is i of the pair, 1: it is j.
+/// Index from particles to their pair slots, for the fixed-order per-particle force gather.
+/// The pair list is sorted by i, so the pairs where particle k is i are the contiguous range
+/// [i_start[k], i_start[k+1]); the pairs where it is j are listed in j_entry (CSR by j_start),
+/// in ascending pair order.
 struct GatherIndex {
-  std::vector<std::uint32_t> offset;  // (n+1) -, entries of particle k: [offset[k], offset[k+1]); broadphase
-  std::vector<std::uint32_t> entry;   // (2m) -, sorted by pair index within a particle; broadphase
+  std::vector<std::uint32_t> i_start;  // (n+1) -, pair range of particle k as i; broadphase
+  std::vector<std::uint32_t> j_start;  // (n+1) -, j_entry range of particle k as j; broadphase
+  std::vector<std::uint32_t> j_entry;  // (m) -, pair indices, ascending within a particle; broadphase
 };
 
 /// Broadphase private buffers and statistics.
@@ -27,7 +30,8 @@ struct BroadphaseScratch {
   std::vector<std::uint32_t> particle_bin;  // (n) -, bin of each particle
   std::vector<std::uint32_t> count;         // (n) -, new pairs per particle i
   std::vector<std::uint32_t> start;         // (n+1) -, prefix sum of count
-  std::vector<std::uint32_t> old_start;     // (n+1) -, pair ranges of the previous list per particle i
+  std::vector<std::uint32_t> old_start;     // (n+1) -, ranges of old_order per particle i
+  std::vector<std::uint32_t> old_order;     // (m_old) -, previous list's pair indices grouped by i
   ContactPairs next_pairs;                  // the list being built, swapped with the State's
   std::vector<Vec3> next_tangential;        // (m,3) history for the list being built
   std::vector<Vec3> next_rolling;           // (m,3) rolling history for the list being built

@@ -4,6 +4,7 @@
 #include "systems/force_gather.hpp"
 #include "systems/hertz_mindlin.hpp"
 #include "systems/integrate.hpp"
+#include "systems/spatial_sort.hpp"
 
 #include <cmath>
 #include <string>
@@ -14,6 +15,7 @@ std::vector<SystemSpec> build_systems(const Model& model) {
   std::vector<SystemSpec> systems;
   systems.push_back(make_system<IntegrateInitial>());
   if (model.contact.enabled) {
+    if (model.contact.sort_interval > 0) systems.push_back(make_system<SpatialSort>());
     systems.push_back(make_system<Broadphase>());
     systems.push_back(make_system<HertzMindlin>());
     systems.push_back(make_system<ForceGather>());
@@ -41,6 +43,9 @@ void validate(const Model& model, const State& state) {
   }
   if (model.contact.enabled && !(model.contact.skin > 0.0))
     throw std::invalid_argument("contact.skin = " + std::to_string(model.contact.skin) + ": must be > 0 m");
+  if (model.contact.sort_interval < 0)
+    throw std::invalid_argument("contact.sort_interval = " + std::to_string(model.contact.sort_interval) +
+                                ": must be >= 0 steps (0: never)");
   if (!(model.contact.rolling_damping >= 0.0))
     throw std::invalid_argument("contact.rolling_damping = " + std::to_string(model.contact.rolling_damping) +
                                 ": must be >= 0");

@@ -137,11 +137,15 @@ void build_neighbor_list(const Model& model, State& state, Scratch& scratch, Exe
   for (std::size_t i = 0; i < n; ++i) bp.start[i + 1] = bp.start[i] + bp.count[i];
   const std::size_t m = bp.start[n];
 
-  // Old list ranges per particle i (the old list is sorted by i).
+  // Old pairs grouped by particle i (a stable counting sort: the old list is sorted by i unless
+  // the particle arrays were reordered since, which remapped its indices).
   const std::size_t m_old = pairs.size();
   bp.old_start.assign(n + 1, 0);
   for (std::size_t k = 0; k < m_old; ++k) ++bp.old_start[pairs.i[k] + 1];
   std::partial_sum(bp.old_start.begin(), bp.old_start.end(), bp.old_start.begin());
+  bp.old_order.resize(m_old);
+  bp.count.assign(bp.old_start.begin(), bp.old_start.end() - 1);
+  for (std::size_t k = 0; k < m_old; ++k) bp.old_order[bp.count[pairs.i[k]]++] = static_cast<std::uint32_t>(k);
 
   // Pass 2: fill each particle's slots, sort them canonically, carry history by key.
   ContactPairs& next = bp.next_pairs;
@@ -176,8 +180,8 @@ void build_neighbor_list(const Model& model, State& state, Scratch& scratch, Exe
         // History: the same (id_i, id_j, image) in the old list of i, if any.
         bp.next_tangential[c].setZero();
         if (has_rolling) bp.next_rolling[c].setZero();
-        for (std::uint32_t o = bp.old_start[i]; o < bp.old_start[i + 1]; ++o)
-          if (pairs.id_j[o] == next.id_j[c] && pairs.image[o] == next.image[c]) {
+        for (std::uint32_t q = bp.old_start[i]; q < bp.old_start[i + 1]; ++q)
+          if (const std::uint32_t o = bp.old_order[q]; pairs.id_j[o] == next.id_j[c] && pairs.image[o] == next.image[c]) {
             bp.next_tangential[c] = tangential[o];
             if (has_rolling) bp.next_rolling[c] = rolling[o];
             break;
@@ -195,20 +199,14 @@ void build_neighbor_list(const Model& model, State& state, Scratch& scratch, Exe
   pairs.reference_length = length;
   reference.assign(x.begin(), x.end());
 
-  // CSR gather index: each pair appears under i (side 0) and j (side 1), in ascending pair order.
-  gather.offset.assign(n + 1, 0);
-  for (std::size_t k = 0; k < m; ++k) {
-    ++gather.offset[pairs.i[k] + 1];
-    ++gather.offset[pairs.j[k] + 1];
-  }
-  std::partial_sum(gather.offset.begin(), gather.offset.end(), gather.offset.begin());
-  gather.entry.resize(2 * m);
-  bp.count.assign(gather.offset.begin(), gather.offset.end() - 1);
-  for (std::size_t k = 0; k < m; ++k) {
-    const auto kk = static_cast<std::uint32_t>(k);
-    gather.entry[bp.count[pairs.i[k]]++] = kk << 1;
-    gather.entry[bp.count[pairs.j[k]]++] = (kk << 1) | 1u;
-  }
+  // Gather index: i ranges are the build's per-particle slot ranges; j entries by counting sort.
+  gather.i_start.assign(bp.start.begin(), bp.start.end());
+  gather.j_start.assign(n + 1, 0);
+  for (std::size_t k = 0; k < m; ++k) ++gather.j_start[pairs.j[k] + 1];
+  std::partial_sum(gather.j_start.begin(), gather.j_start.end(), gather.j_start.begin());
+  gather.j_entry.resize(m);
+  bp.count.assign(gather.j_start.begin(), gather.j_start.end() - 1);
+  for (std::size_t k = 0; k < m; ++k) gather.j_entry[bp.count[pairs.j[k]]++] = static_cast<std::uint32_t>(k);
   bp.cutoff = cutoff;
   ++bp.builds;
 }

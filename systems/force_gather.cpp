@@ -12,23 +12,25 @@ void ForceGather::run(const Model&, State& state, Scratch& scratch, Executor& ex
   const Vec3* __restrict f = in.force.data();
   const Vec3* __restrict t_i = in.torque_i.data();
   const Vec3* __restrict t_j = in.torque_j.data();
-  const std::uint32_t* __restrict offset = index.offset.data();
-  const std::uint32_t* __restrict entry = index.entry.data();
+  const std::uint32_t* __restrict i_start = index.i_start.data();
+  const std::uint32_t* __restrict j_start = index.j_start.data();
+  const std::uint32_t* __restrict j_entry = index.j_entry.data();
   Vec3* __restrict out_f = force.data();
   Vec3* __restrict out_t = torque.data();
   exec.parallel_for(force.size(), k_particle_grain, [&](std::size_t b, std::size_t e) {
     for (std::size_t p = b; p < e; ++p) {
       Vec3 fs = Vec3::Zero();
       Vec3 ts = Vec3::Zero();
-      for (std::uint32_t q = offset[p]; q < offset[p + 1]; ++q) {
-        const std::uint32_t k = entry[q] >> 1;
-        if ((entry[q] & 1u) == 0) {
-          fs += f[k];
-          ts += t_i[k];
-        } else {
-          fs -= f[k];
-          ts += t_j[k];
-        }
+      // As i: a contiguous run of pair slots.
+      for (std::uint32_t k = i_start[p]; k < i_start[p + 1]; ++k) {
+        fs += f[k];
+        ts += t_i[k];
+      }
+      // As j: listed slots, ascending.
+      for (std::uint32_t q = j_start[p]; q < j_start[p + 1]; ++q) {
+        const std::uint32_t k = j_entry[q];
+        fs -= f[k];
+        ts += t_j[k];
       }
       out_f[p] = fs;
       out_t[p] = ts;

@@ -1,6 +1,7 @@
 #pragma once
-// force_gather: per-particle sums of the pair slots, over the CSR gather index, in ascending pair
-// order: F_k = sum(F on i where k is i) - sum(F on i where k is j); torques likewise from the
+// force_gather: per-particle sums of the pair slots in a fixed order: first the pairs where the
+// particle is i (a contiguous run, since the list is sorted by i), then those where it is j (from
+// the gather index, ascending). F_k = sum(F on i, k is i) - sum(F on i, k is j); torques from the
 // torque_i / torque_j slots. No atomics; the order of every sum is fixed by the pair list, so the
 // result is bitwise the same for any thread count. Reads contact_forces and gather_index; writes
 // particle forces and torques (all of them: a particle without contacts gets zero).

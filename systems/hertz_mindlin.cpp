@@ -2,6 +2,7 @@
 
 #include "systems/rolling.hpp"
 
+#include <algorithm>
 #include <cmath>
 
 namespace sandcell {
@@ -34,12 +35,9 @@ struct HertzMindlinEvaluator {
   double dt;
   bool update_history;
 
-  [[gnu::always_inline]] inline NormalTangential evaluate(const PairKinematics& c, Vec3& history) const {
-    const double sqrt_rd = std::sqrt(c.r_star * c.overlap);
-    const double s_n = 2.0 * mat.e_star * sqrt_rd;
-    const double k_n = (2.0 / 3.0) * s_n;             // 4/3 E* sqrt(R* delta)
-    const double k_t = 8.0 * mat.g_star * sqrt_rd;    // = S_t
-    const double gamma_n = -k_two_sqrt_5_6 * mat.beta * std::sqrt(s_n * c.m_star);
+  /// k_n = 4/3 E* sqrt(R* delta), k_t = 8 G* sqrt(R* delta), gamma_n = -2 sqrt(5/6) beta sqrt(S_n m*).
+  [[gnu::always_inline]] inline NormalTangential evaluate(const PairKinematics& c, double k_n, double k_t,
+                                                          double gamma_n, Vec3& history) const {
     const double gamma_t = gamma_n * mat.damping_ratio_t;  // -2 sqrt(5/6) beta sqrt(S_t m*)
 
     const double v_n = c.v_rel.dot(c.n);
@@ -83,6 +81,30 @@ struct HertzMindlinEvaluator {
   }
 };
 
+// The pair loop runs in blocks of k_block pairs, in three phases: gather the branch vectors and
+// pair constants (scalar loads), the square roots and divisions of the Hertz stiffness for the
+// whole block (branch-free, so the compiler vectorizes it and the long sqrt/div latencies of
+// different pairs overlap), then the history-dependent tangential and rolling laws per pair.
+// IEEE sqrt and division are correctly rounded in vector and scalar form alike, so the result
+// of a pair does not depend on the blocking (nor on the thread count).
+constexpr std::size_t k_block = 64;
+static_assert(k_contact_grain % k_block == 0, "blocks must not straddle parallel chunks");
+
+struct alignas(64) Block {
+  double rx[k_block], ry[k_block], rz[k_block];  // m, branch vector
+  double sum_r[k_block];                         // m, R_i + R_j
+  double r_prod[k_block];                        // m^2, R_i R_j
+  double m_prod[k_block], m_sum[k_block];        // kg^2, kg
+  double e_star[k_block], g_star[k_block];       // Pa
+  double damp[k_block];                          // -, -2 sqrt(5/6) beta
+  // Computed in phase 2:
+  double inv_dist[k_block];                      // 1/m
+  double overlap[k_block];                       // m, <= 0 when apart
+  double r_star[k_block], m_star[k_block];       // m, kg
+  double k_n[k_block], k_t[k_block];             // N/m
+  double gamma_n[k_block];                       // kg/s
+};
+
 template <TangentialModel Tangential, RollingModel Roll, bool Affine>
 void contact_loop(const Model& model, State& state, Scratch& scratch, Executor& exec) {
   const ContactPairs& pairs = state.read<Component::contact_pairs>();
@@ -118,54 +140,89 @@ void contact_loop(const Model& model, State& state, Scratch& scratch, Executor& 
   const RollingEvaluator<Roll> roll{model.dt, model.contact.rolling_damping, update_history};
 
   exec.parallel_for(m, k_contact_grain, [&](std::size_t b, std::size_t e) {
-    for (std::size_t k = b; k < e; ++k) {
-      const std::uint32_t i = pi[k], j = pj[k];
-      const Image img = image[k];
-      const Vec3 r = x[i] - x[j] - Vec3(img[0] * length[0], img[1] * length[1], img[2] * length[2]);
-      const double r2 = r.squaredNorm();
-      const double sum_r = radius[i] + radius[j];
-      if (r2 >= sum_r * sum_r) {
-        force[k].setZero();
-        torque_i[k].setZero();
-        torque_j[k].setZero();
-        hist_t[k].setZero();  // history resets when the contact opens
-        if constexpr (Roll != RollingModel::none) hist_r[k].setZero();
-        continue;
+    Block blk;
+    for (std::size_t k0 = b; k0 < e; k0 += k_block) {
+      const std::size_t nb = std::min(k_block, e - k0);
+      // Phase 1: gather.
+      for (std::size_t t = 0; t < nb; ++t) {
+        const std::size_t k = k0 + t;
+        const std::uint32_t i = pi[k], j = pj[k];
+        const Image img = image[k];
+        blk.rx[t] = x[i][0] - x[j][0] - img[0] * length[0];
+        blk.ry[t] = x[i][1] - x[j][1] - img[1] * length[1];
+        blk.rz[t] = x[i][2] - x[j][2] - img[2] * length[2];
+        blk.sum_r[t] = radius[i] + radius[j];
+        blk.r_prod[t] = radius[i] * radius[j];
+        blk.m_prod[t] = mass[i] * mass[j];
+        blk.m_sum[t] = mass[i] + mass[j];
+        const PairMaterial& mat = n_mat == 1 ? model.pairs[0] : model.pairs[material[i] * n_mat + material[j]];
+        blk.e_star[t] = mat.e_star;
+        blk.g_star[t] = mat.g_star;
+        blk.damp[t] = -k_two_sqrt_5_6 * mat.beta;
       }
-      const double dist = std::sqrt(r2);
-      PairKinematics c;
-      c.n = r * (1.0 / dist);
-      c.overlap = sum_r - dist;
-      c.r_star = radius[i] * radius[j] / sum_r;
-      c.m_star = mass[i] * mass[j] / (mass[i] + mass[j]);
-      c.c_i = radius[i] - 0.5 * c.overlap;
-      c.c_j = radius[j] - 0.5 * c.overlap;
-      c.v_rel = v[i] - v[j];
-      if constexpr (Affine) c.v_rel += rate.cwiseProduct(r);
-      c.w_i = w[i];
-      c.w_j = w[j];
-      const PairMaterial& mat = n_mat == 1 ? model.pairs[0] : model.pairs[material[i] * n_mat + material[j]];
-      const HertzMindlinEvaluator<Tangential> law{mat, model.dt, update_history};
-      const NormalTangential nt = law.evaluate(c, hist_t[k]);
-      const Vec3 arm_torque = c.n.cross(nt.f_t);  // torque on i is -c_i n x F_t, on j -c_j n x F_t
-      Vec3 t_i = -c.c_i * arm_torque;
-      Vec3 t_j = -c.c_j * arm_torque;
-      if constexpr (Roll != RollingModel::none) {
-        double i_r = 0.0;
-        if constexpr (Roll == RollingModel::epsd) {
-          const double a = mass[i] * radius[i] * radius[i];
-          const double d = mass[j] * radius[j] * radius[j];
-          i_r = 1.4 * a * d / (a + d);
+      // Phase 2: stiffness and damping, branch-free (apart pairs get overlap <= 0, zeros after).
+      for (std::size_t t = 0; t < nb; ++t) {
+        const double r2 = blk.rx[t] * blk.rx[t] + blk.ry[t] * blk.ry[t] + blk.rz[t] * blk.rz[t];
+        const double dist = std::sqrt(r2);
+        const double overlap = blk.sum_r[t] - dist;
+        const double od = overlap > 0.0 ? overlap : 0.0;
+        blk.inv_dist[t] = 1.0 / dist;
+        blk.overlap[t] = overlap;
+        blk.r_star[t] = blk.r_prod[t] / blk.sum_r[t];
+        blk.m_star[t] = blk.m_prod[t] / blk.m_sum[t];
+        const double sqrt_rd = std::sqrt(blk.r_star[t] * od);
+        const double s_n = 2.0 * blk.e_star[t] * sqrt_rd;
+        blk.k_n[t] = (2.0 / 3.0) * s_n;           // 4/3 E* sqrt(R* delta)
+        blk.k_t[t] = 8.0 * blk.g_star[t] * sqrt_rd;  // = S_t
+        blk.gamma_n[t] = blk.damp[t] * std::sqrt(s_n * blk.m_star[t]);
+      }
+      // Phase 3: tangential and rolling laws, outputs.
+      for (std::size_t t = 0; t < nb; ++t) {
+        const std::size_t k = k0 + t;
+        if (!(blk.overlap[t] > 0.0)) {
+          force[k].setZero();
+          torque_i[k].setZero();
+          torque_j[k].setZero();
+          hist_t[k].setZero();  // history resets when the contact opens
+          if constexpr (Roll != RollingModel::none) hist_r[k].setZero();
+          continue;
         }
-        const Vec3 moment = roll.evaluate(
-            RollingInput{c.n, c.w_i - c.w_j, c.overlap, nt.f_n, nt.k_n, nt.k_t, c.r_star, i_r, mat.rolling_friction},
-            hist_r[k]);
-        t_i -= moment;
-        t_j += moment;
+        const std::uint32_t i = pi[k], j = pj[k];
+        const Vec3 r(blk.rx[t], blk.ry[t], blk.rz[t]);
+        PairKinematics c;
+        c.n = r * blk.inv_dist[t];
+        c.overlap = blk.overlap[t];
+        c.r_star = blk.r_star[t];
+        c.m_star = blk.m_star[t];
+        c.c_i = radius[i] - 0.5 * c.overlap;
+        c.c_j = radius[j] - 0.5 * c.overlap;
+        c.v_rel = v[i] - v[j];
+        if constexpr (Affine) c.v_rel += rate.cwiseProduct(r);
+        c.w_i = w[i];
+        c.w_j = w[j];
+        const PairMaterial& mat = n_mat == 1 ? model.pairs[0] : model.pairs[material[i] * n_mat + material[j]];
+        const HertzMindlinEvaluator<Tangential> law{mat, model.dt, update_history};
+        const NormalTangential nt = law.evaluate(c, blk.k_n[t], blk.k_t[t], blk.gamma_n[t], hist_t[k]);
+        const Vec3 arm_torque = c.n.cross(nt.f_t);  // torque on i is -c_i n x F_t, on j -c_j n x F_t
+        Vec3 t_i = -c.c_i * arm_torque;
+        Vec3 t_j = -c.c_j * arm_torque;
+        if constexpr (Roll != RollingModel::none) {
+          double i_r = 0.0;
+          if constexpr (Roll == RollingModel::epsd) {
+            const double a = mass[i] * radius[i] * radius[i];
+            const double d = mass[j] * radius[j] * radius[j];
+            i_r = 1.4 * a * d / (a + d);
+          }
+          const Vec3 moment = roll.evaluate(RollingInput{c.n, c.w_i - c.w_j, c.overlap, nt.f_n, nt.k_n, nt.k_t,
+                                                         c.r_star, i_r, mat.rolling_friction},
+                                            hist_r[k]);
+          t_i -= moment;
+          t_j += moment;
+        }
+        force[k] = nt.f_n * c.n + nt.f_t;
+        torque_i[k] = t_i;
+        torque_j[k] = t_j;
       }
-      force[k] = nt.f_n * c.n + nt.f_t;
-      torque_i[k] = t_i;
-      torque_j[k] = t_j;
     }
   });
 }

@@ -2,7 +2,8 @@
 // ran (shared/bench/README.md of the project's benchmark notes, copied into scenes/).
 //
 //   dem-bench [--scene FILE] [--steps N] [--threads T] [--deform RATE] [--rolling MODEL]
-//             [--tangential MODEL] [--compat] [--serial] [--json]
+//             [--tangential MODEL] [--compat] [--sort STEPS] [--serial] [--json]
+// --sort STEPS: spatial sort interval (default 1000; 0 = never).
 //
 // Scene A: fixed periodic box. Scene B (--deform RATE): box shortened along z at a constant
 // engineering strain rate RATE (1/s), x and y fixed, as LIGGGHTS `fix deform ... erate -RATE`.
@@ -49,6 +50,7 @@ int main(int argc, char** argv) {
   int threads = 0;
   double deform = 0.0;
   bool json = false, serial = false;
+  long sort_interval = -1;
   Model model;
   for (int a = 1; a < argc; ++a) {
     const std::string_view arg = argv[a];
@@ -61,6 +63,7 @@ int main(int argc, char** argv) {
     else if (arg == "--threads") threads = static_cast<int>(parse_number("--threads", value(), 1, 1024));
     else if (arg == "--deform") deform = parse_number("--deform", value(), 0, 1e6);
     else if (arg == "--compat") model.contact.liggghts_compat = true;
+    else if (arg == "--sort") sort_interval = static_cast<long>(parse_number("--sort", value(), 0, 1e9));
     else if (arg == "--serial") serial = true;
     else if (arg == "--json") json = true;
     else if (arg == "--rolling") {
@@ -77,7 +80,7 @@ int main(int argc, char** argv) {
       else usage_error("--tangential = '" + std::string(v) + "': allowed history, incremental");
     } else if (arg == "--help" || arg == "-h") {
       std::printf("usage: dem-bench [--scene FILE] [--steps N] [--threads T] [--deform RATE] [--rolling none|epsd2|epsd|cdt]\n"
-                  "                 [--tangential history|incremental] [--compat] [--serial] [--json]\n");
+                  "                 [--tangential history|incremental] [--compat] [--sort STEPS] [--serial] [--json]\n");
       return 0;
     } else {
       usage_error("unknown argument '" + std::string(arg) + "' (see --help)");
@@ -88,6 +91,8 @@ int main(int argc, char** argv) {
   model.dt = 5.324636531947874e-07;  // s, 0.2 x Rayleigh time of the smallest (d = 5 mm) sphere
   model.materials.push_back(Material{2650.0, 70e9, 0.3, 0.5, 0.5, 0.1});
   model.contact.skin = 0.3e-3;  // m
+  if (sort_interval < 0) sort_interval = 1000;
+  model.contact.sort_interval = sort_interval;
 
   Packing packing;
   try {
