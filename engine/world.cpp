@@ -5,6 +5,7 @@
 #include "systems/hertz_mindlin.hpp"
 #include "systems/integrate.hpp"
 #include "systems/spatial_sort.hpp"
+#include "systems/wrap.hpp"
 
 #include <cmath>
 #include <string>
@@ -14,6 +15,7 @@ namespace sandcell {
 std::vector<SystemSpec> build_systems(const Model& model) {
   std::vector<SystemSpec> systems;
   systems.push_back(make_system<IntegrateInitial>());
+  if (!model.contact.enabled) systems.push_back(make_system<Wrap>());
   if (model.contact.enabled) {
     if (model.contact.sort_interval > 0) systems.push_back(make_system<SpatialSort>());
     systems.push_back(make_system<Broadphase>());

@@ -1,5 +1,7 @@
 #include "systems/broadphase.hpp"
 
+#include "systems/wrap.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <numeric>
@@ -61,7 +63,8 @@ void for_each_neighbor(const Bins& bins, const std::array<int, 3>& b, const std:
 
 void build_neighbor_list(const Model& model, State& state, Scratch& scratch, Executor& exec) {
   const auto& id = state.read<Component::particle_id>();
-  const auto& x = state.read<Component::particle_position>();
+  auto& position = state.write<Component::particle_position>();
+  const auto& x = position;
   const auto& radius = state.read<Component::particle_radius>();
   const Cell& cell = state.read<Component::cell>();
   ContactPairs& pairs = state.write<Component::contact_pairs>();
@@ -86,6 +89,10 @@ void build_neighbor_list(const Model& model, State& state, Scratch& scratch, Exe
                " m): a sphere would meet its own periodic image";
     return;
   }
+
+  // Positions into the cell: between builds they drift continuously (the images stored with the
+  // pairs depend on it); a new list is made from wrapped positions.
+  wrap_positions(position.data(), length, 0, n);
 
   // Bin the particles (counting sort, stable in particle index: deterministic).
   Bins bins;

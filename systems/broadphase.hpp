@@ -2,7 +2,8 @@
 // broadphase: the neighbour (candidate pair) list over the orthorhombic periodic cell, with a
 // Verlet skin, rebuilt only when needed, and the history carried from the old list to the new.
 //
-// Reads positions, radii, ids and the cell. Writes the pair list (contact_pairs), the history
+// Reads radii, ids and the cell. Writes positions (wrapped into the cell at each build, the only
+// place they are wrapped in a scene with contacts), the pair list (contact_pairs), the history
 // arrays (contact_tangential, contact_rolling) when it rebuilds, the per-particle reference
 // positions of the last build and the CSR gather index.
 //
@@ -26,10 +27,10 @@ namespace sandcell {
 
 struct Broadphase {
   static constexpr std::string_view name = "broadphase";
-  static constexpr ComponentMask reads = mask_of({Component::particle_id, Component::particle_position,
-                                                  Component::particle_radius, Component::cell});
+  static constexpr ComponentMask reads =
+      mask_of({Component::particle_id, Component::particle_radius, Component::cell});
   static constexpr ComponentMask writes =
-      mask_of({Component::contact_pairs, Component::contact_tangential, Component::contact_rolling,
+      mask_of({Component::particle_position, Component::contact_pairs, Component::contact_tangential, Component::contact_rolling,
                Component::particle_reference, Component::gather_index});
   static void run(const Model& model, State& state, Scratch& scratch, Executor& exec);
 };

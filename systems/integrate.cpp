@@ -39,14 +39,7 @@ void IntegrateInitial::run(const Model& model, State& state, Scratch&, Executor&
   Vec3* w = omega.data();
   exec.parallel_for(position.size(), k_particle_grain, [&](std::size_t b, std::size_t e) {
     half_kick(0.5 * dt, f, t, m, inv_i, v, w, b, e);
-    for (std::size_t k = b; k < e; ++k) {
-      Vec3 xk = x[k] + (v[k] + rate.cwiseProduct(x[k])) * dt;
-      for (int a = 0; a < 3; ++a) {
-        if (xk[a] >= new_length[a]) xk[a] -= new_length[a];
-        else if (xk[a] < 0.0) xk[a] += new_length[a];
-      }
-      x[k] = xk;
-    }
+    for (std::size_t k = b; k < e; ++k) x[k] += (v[k] + rate.cwiseProduct(x[k])) * dt;
   });
   cell.length = new_length;
 }

@@ -2,13 +2,17 @@
 // Velocity-Verlet integration of spheres in a deforming orthorhombic periodic cell, in the form of
 // LAMMPS/LIGGGHTS nve/sphere, split into the two halves the step graph places around the forces:
 //
-//   integrate_initial: v~ += F/m dt/2, w += T/I dt/2, x += (v~ + D x) dt, L_k += D_kk L_k dt,
-//                      then x wrapped into [0, L_k) with the new lengths;
+//   integrate_initial: v~ += F/m dt/2, w += T/I dt/2, x += (v~ + D x) dt, L_k += D_kk L_k dt;
 //   integrate_final:   v~ += F/m dt/2, w += T/I dt/2.
 //
 // Newton's law acts on the fluctuating velocity v~; positions move with the full velocity
 // v~ + D x, so with v~ = 0 a particle keeps its reduced coordinates x_k / L_k (affine motion): the
 // cell and the positions are scaled by the same factor (1 + D_kk dt) each step.
+// Positions are not wrapped here: the pair list stores each pair's periodic image, which stays
+// valid only while positions are continuous. The broadphase wraps them into the cell when it
+// rebuilds the list (so they leave the cell by at most half a skin), and scenes without contacts
+// schedule the `wrap` system after this one (systems/wrap.hpp). Since the affine field D x is
+// homogeneous, a branch vector x_i - x_j - H n evolves the same with wrapped or unwrapped x.
 // Reads forces, torques, masses and inverse inertias; writes positions, velocities, angular
 // velocities, and the cell lengths (initial half only). Per-particle independent: a parallel_for.
 #include "engine/system.hpp"
