@@ -32,7 +32,7 @@ TEST_CASE("the registry lists every particle and contact array") {
   CHECK(without_rolling == contact_fields - 1);
 }
 
-TEST_CASE("reorder permutes every field together; first_difference sees a single changed bit") {
+TEST_CASE("reorder permutes every field together and first_difference sees a single changed bit") {
   Model model;
   model.materials.push_back(Material{});
   State s = test::random_gas(model, 50, 0.1, 1e-3, 2e-3, 1.0, 10.0, 3);

@@ -20,3 +20,16 @@ struct AssertionError : std::runtime_error {
 void throwing_assert_handler(const char* file, int line, const char* expr, const std::string& message);
 
 }  // namespace sandcell::test
+
+namespace sandcell::test {
+
+/// n_side^3 spheres on a simple cubic lattice of the given spacing, in a periodic cube of side
+/// n_side * spacing; each sphere is displaced by a uniform random jitter in [-jitter, jitter]^3 and
+/// has a radius uniform in [r_min, r_max], so with 2 r_min > spacing + 2 sqrt(3) jitter every lattice
+/// neighbour pair overlaps (a dense, jammed periodic packing), with 2 r_max < spacing - 2 sqrt(3)
+/// jitter none does (a dilute gas on a lattice, free of initial overlaps). Random fluctuating and
+/// angular velocities of the given scales. Ids 0..n-1 in lattice order, material 0.
+State jittered_lattice(const Model& model, std::size_t n_side, double spacing, double r_min, double r_max,
+                       double jitter, double v_scale, double w_scale, std::uint64_t seed);
+
+}  // namespace sandcell::test
