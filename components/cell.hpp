@@ -17,4 +17,9 @@ struct Cell {
   double min_width() const { return length.minCoeff(); }
 };
 
+/// H n for an orthorhombic cell: the shift of a periodic image n, m.
+inline Vec3 image_offset(const Image& n, const Vec3& length) {
+  return Vec3(n[0] * length[0], n[1] * length[1], n[2] * length[2]);
+}
+
 }  // namespace sandcell

@@ -124,7 +124,7 @@ void build_neighbor_list(const Model& model, State& state, Scratch& scratch, Exe
     const ParticleId idi = id[i];
     for_each_neighbor(bins, b, bp.bin_start, bp.bin_particle, [&](std::uint32_t j, const Image& img) {
       if (id[j] <= idi) return;
-      const Vec3 r = xi - (x[j] + Vec3(img[0] * length[0], img[1] * length[1], img[2] * length[2]));
+      const Vec3 r = xi - (x[j] + image_offset(img, length));
       const double cut = ri + radius[j];
       if (r.squaredNorm() < cut * cut) emit(j, img);
     });

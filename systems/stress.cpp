@@ -15,7 +15,7 @@ Mat3 contact_stress(const State& state, Executor& exec) {
         for (std::size_t k = b; k < e; ++k) {
           const Image& img = pairs.image[k];
           const Vec3 r = x[pairs.i[k]] - x[pairs.j[k]] -
-                         Vec3(img[0] * length[0], img[1] * length[1], img[2] * length[2]);
+                         image_offset(img, length);
           s += force[k] * r.transpose();
         }
         return s;
@@ -33,7 +33,7 @@ std::size_t count_touching(const State& state) {
   std::size_t count = 0;
   for (std::size_t k = 0; k < pairs.size(); ++k) {
     const Image& img = pairs.image[k];
-    const Vec3 r = x[pairs.i[k]] - x[pairs.j[k]] - Vec3(img[0] * length[0], img[1] * length[1], img[2] * length[2]);
+    const Vec3 r = x[pairs.i[k]] - x[pairs.j[k]] - image_offset(img, length);
     const double s = radius[pairs.i[k]] + radius[pairs.j[k]];
     if (r.squaredNorm() < s * s) ++count;
   }
