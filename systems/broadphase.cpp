@@ -234,15 +234,14 @@ void Broadphase::run(const Model& model, State& state, Scratch& scratch, Executo
     const Vec3 length = cell.length;
     const Vec3 inv_length = length.cwiseInverse();
     const Vec3 inv_ref = pairs.reference_length.cwiseInverse();
-    // Largest non-affine displacement since the build: the change of reduced coordinates, taken
-    // to the nearest image (a wrap changes s by one), scaled by the current lengths.
+    // Largest non-affine displacement since the build: the change of reduced coordinates scaled
+    // by the current lengths (positions are continuous between builds: no wrap to undo).
     const double d2 = exec.deterministic_reduce(
         x.size(), 4096, 0.0,
         [&](std::size_t b, std::size_t e) {
           double worst = 0.0;
           for (std::size_t k = b; k < e; ++k) {
-            Vec3 ds = x[k].cwiseProduct(inv_length) - reference[k].cwiseProduct(inv_ref);
-            for (int a = 0; a < 3; ++a) ds[a] -= std::nearbyint(ds[a]);
+            const Vec3 ds = x[k].cwiseProduct(inv_length) - reference[k].cwiseProduct(inv_ref);
             worst = std::max(worst, ds.cwiseProduct(length).squaredNorm());
           }
           return worst;
