@@ -1,7 +1,8 @@
 #pragma once
 // Contact component: the persistent pair list (candidate pairs within the neighbour skin) and the
-// per-pair history that a restart must carry. Entries are in a canonical sorted order by
-// (id_i, id_j, image) with id_i < id_j; each pair owns its force slots, so the contact law writes
+// per-pair history that a restart must carry. Each pair is listed once, with id_i < id_j, in a
+// canonical order: by the array index of i, then (id_j, image); history is keyed by
+// (id_i, id_j, image). Each pair owns its force slots, so the contact law writes
 // without atomics and the per-particle gather sums in a fixed order.
 // Each array: (shape) units; the system that writes it.
 #include "components/types.hpp"

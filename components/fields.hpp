@@ -53,7 +53,7 @@ struct FieldInfo {
 template <class P, class Fn>
 void for_each_particle_field(P& p, Fn&& fn) {
   fn(FieldInfo{"id", "-", "constant", Component::particle_id}, p.id);
-  fn(FieldInfo{"position", "m", "integrate_initial", Component::particle_position}, p.position);
+  fn(FieldInfo{"position", "m", "integrate_initial, broadphase, wrap", Component::particle_position}, p.position);
   fn(FieldInfo{"velocity", "m/s", "integrate_*", Component::particle_velocity}, p.velocity);
   fn(FieldInfo{"angular_velocity", "rad/s", "integrate_*", Component::particle_angular_velocity},
      p.angular_velocity);

@@ -10,7 +10,8 @@ namespace sandcell {
 
 struct Particles {
   std::vector<ParticleId> id;            // (n) -; set at creation, never written by a system
-  std::vector<Vec3> position;            // (n,3) m, wrapped into [0, L_k); written by integrate_initial
+  std::vector<Vec3> position;            // (n,3) m; drifted by integrate_initial, wrapped into [0, L_k) by
+                                         // the broadphase at each list build (or by wrap, without contacts)
   std::vector<Vec3> velocity;            // (n,3) m/s, fluctuating part v~ (total = v~ + D x); integrate_*
   std::vector<Vec3> angular_velocity;    // (n,3) rad/s; written by integrate_*
   std::vector<Vec3> force;               // (n,3) N, sum of contact forces; written by the force gather

@@ -41,6 +41,8 @@ class World {
   const Scratch& scratch() const { return scratch_; }
   Executor& executor() { return exec_; }
   const StepGraph& graph() const { return graph_; }
+  /// Zeroes the per-system timers (e.g. before a timed loop).
+  void reset_timers() { graph_.reset_timers(); }
 
  private:
   void check_health() const;

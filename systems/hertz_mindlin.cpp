@@ -15,7 +15,6 @@ struct PairKinematics {
   Vec3 n;           // unit normal, from j to i
   double overlap;   // m
   double r_star;    // m
-  double m_star;    // kg
   double c_i, c_j;  // m, lever arms from the centres to the contact point
   Vec3 v_rel;       // m/s, at the centres (fluctuating difference + affine D r)
   Vec3 w_i, w_j;    // rad/s
@@ -100,7 +99,7 @@ struct alignas(64) Block {
   // Computed in phase 2:
   double inv_dist[k_block];                      // 1/m
   double overlap[k_block];                       // m, <= 0 when apart
-  double r_star[k_block], m_star[k_block];       // m, kg
+  double r_star[k_block];                        // m
   double k_n[k_block], k_t[k_block];             // N/m
   double gamma_n[k_block];                       // kg/s
 };
@@ -169,12 +168,12 @@ void contact_loop(const Model& model, State& state, Scratch& scratch, Executor& 
         blk.inv_dist[t] = 1.0 / dist;
         blk.overlap[t] = overlap;
         blk.r_star[t] = blk.r_prod[t] / blk.sum_r[t];
-        blk.m_star[t] = blk.m_prod[t] / blk.m_sum[t];
+        const double m_star = blk.m_prod[t] / blk.m_sum[t];
         const double sqrt_rd = std::sqrt(blk.r_star[t] * od);
         const double s_n = 2.0 * blk.e_star[t] * sqrt_rd;
         blk.k_n[t] = (2.0 / 3.0) * s_n;           // 4/3 E* sqrt(R* delta)
         blk.k_t[t] = 8.0 * blk.g_star[t] * sqrt_rd;  // = S_t
-        blk.gamma_n[t] = blk.damp[t] * std::sqrt(s_n * blk.m_star[t]);
+        blk.gamma_n[t] = blk.damp[t] * std::sqrt(s_n * m_star);
       }
       // Phase 3: tangential and rolling laws, outputs.
       for (std::size_t t = 0; t < nb; ++t) {
@@ -193,7 +192,6 @@ void contact_loop(const Model& model, State& state, Scratch& scratch, Executor& 
         c.n = r * blk.inv_dist[t];
         c.overlap = blk.overlap[t];
         c.r_star = blk.r_star[t];
-        c.m_star = blk.m_star[t];
         c.c_i = radius[i] - 0.5 * c.overlap;
         c.c_j = radius[j] - 0.5 * c.overlap;
         c.v_rel = v[i] - v[j];

@@ -50,10 +50,8 @@ void spatial_sort(State& state) {
 void SpatialSort::run(const Model& model, State& state, Scratch&, Executor&) {
   // The clock is advanced by World between steps only; reading it here is race-free.
   if (model.contact.sort_interval <= 0 || state.clock.step % model.contact.sort_interval != 0) return;
-  // Touch every declared component through the checked accessors, then permute.
-  (void)state.read<Component::cell>();
-  (void)state.write<Component::particle_id>();
-  (void)state.write<Component::contact_pairs>();
+  // spatial_sort permutes every particle array through the field registry (all declared as
+  // written) and remaps the pair indices (contact_pairs, declared).
   spatial_sort(state);
 }
 
