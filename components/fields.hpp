@@ -34,6 +34,7 @@ enum class Component : std::uint8_t {
   cell,
   // Scratch components (rebuilt, never checkpointed).
   gather_index,
+  stress,  // the homogenizer's measured stress, read by the servo in the same step
   count
 };
 inline constexpr std::size_t k_component_count = static_cast<std::size_t>(Component::count);

@@ -1,6 +1,9 @@
 #pragma once
 // The Model: everything constant during a run. Validated once, when the scene is built.
 #include "components/material.hpp"
+#include "components/types.hpp"
+
+#include <array>
 
 #include <cstdint>
 #include <vector>
@@ -44,10 +47,42 @@ struct PairMaterial {
   double damping_ratio_t = 0.0;   // -, gamma_t / gamma_n = sqrt(S_t / S_n) = sqrt(4 G* / E*)
 };
 
+/// How a cell axis is driven (DESIGN 3.6).
+enum class AxisControl {
+  strain,  // at the set strain rate
+  stress,  // by the servo, toward the path's target stress
+};
+
+/// The stress path whose targets the servo recomputes from the measured sigma1 (DESIGN 3.6).
+enum class StressPath {
+  fixed,             // per-axis targets as given (`target`)
+  isotropic,         // all three axes to p
+  constant_p_b,      // sigma3* = (3p - (1+b) s1)/(2-b), sigma2* = (3p(1-b) + (2b-1) s1)/(2-b)
+  constant_sigma3_b, // sigma3* = sigma3, sigma2* = b s1 + (1-b) sigma3
+};
+
+/// The periodic servo (DESIGN 3.6). Soil convention: stresses and strain rates compression positive.
+/// Axis k of the cell is principal direction k: sigma1 = S_xx, sigma2 = S_yy, sigma3 = S_zz.
+struct ServoSettings {
+  bool enabled = false;  // false: no homogenizer or servo scheduled; the cell keeps its rate
+  StressPath path = StressPath::fixed;
+  std::array<AxisControl, 3> control{AxisControl::strain, AxisControl::strain, AxisControl::strain};
+  Vec3 strain_rate = Vec3::Zero();  // 1/s, compression positive, for strain-controlled axes
+  Vec3 target = Vec3::Zero();       // Pa, per-axis targets of the `fixed` path
+  double p = 0.0;                   // Pa, mean stress of the isotropic and constant-p paths
+  double b = 0.0;                   // -, intermediate principal stress ratio, in [0, 1]
+  double sigma3 = 0.0;              // Pa, minor stress of the constant-sigma3 path
+  double gain = 0.0;                // 1/s, g in eps_dot = g (sigma* - sigma)/|sigma*|
+  double max_rate = 0.0;            // 1/s, cap on |eps_dot| of a stress-controlled axis
+  int interval = 1;                 // steps between stress measurements and servo updates
+  bool kinetic_stress = false;      // include the kinetic part sum m v~ (x) v~ / V in the measured stress
+};
+
 struct Model {
   double dt = 0.0;                   // s, time step
   std::vector<Material> materials;   // indexed by particles.material
   ContactSettings contact;
+  ServoSettings servo;
 
   /// (n_materials^2) pair constants, row-major [mi * n + mj]; filled by finalize().
   std::vector<PairMaterial> pairs;

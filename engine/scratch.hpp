@@ -4,6 +4,7 @@
 // Systems reach the shared parts through read<C>() / write<C>() (checked like State access);
 // a system's private buffers (e.g. the broadphase bins) are its own business.
 #include "components/contacts.hpp"
+#include "components/types.hpp"
 #include "components/fields.hpp"
 #include "engine/access.hpp"
 
@@ -21,6 +22,7 @@ struct GatherIndex {
   std::vector<std::uint32_t> i_start;  // (n+1) -, pair range of particle k as i; broadphase
   std::vector<std::uint32_t> j_start;  // (n+1) -, j_entry range of particle k as j; broadphase
   std::vector<std::uint32_t> j_entry;  // (m) -, pair indices, ascending within a particle; broadphase
+  std::vector<std::uint32_t> fill;     // (n) -, cursor buffer of the counting sort (kept: no allocation per build)
 };
 
 /// Broadphase private buffers and statistics.
@@ -43,9 +45,16 @@ struct BroadphaseScratch {
 template <Component C>
 struct ScratchField;
 
+/// The stress measured by the homogenizer on servo steps, for the servo of the same step.
+struct MeasuredStress {
+  Mat3 stress = Mat3::Zero();  // (3,3) Pa, symmetrized, compression positive (DESIGN 3.5)
+  std::uint64_t step = ~std::uint64_t{0};  // clock step at which it was measured (none: max)
+};
+
 class Scratch {
  public:
   GatherIndex gather;
+  MeasuredStress measured;
   BroadphaseScratch broadphase;
   // True while forces are evaluated at scene setup: contact laws then leave their history untouched
   // (as LAMMPS/LIGGGHTS do in `run 0` setup), so setting up a scene does not advance it.
@@ -67,6 +76,12 @@ template <>
 struct ScratchField<Component::gather_index> {
   template <class S>
   static auto& get(S& s) { return s.gather; }
+};
+
+template <>
+struct ScratchField<Component::stress> {
+  template <class S>
+  static auto& get(S& s) { return s.measured; }
 };
 
 }  // namespace sandcell

@@ -3,7 +3,9 @@
 #include "systems/broadphase.hpp"
 #include "systems/force_gather.hpp"
 #include "systems/hertz_mindlin.hpp"
+#include "systems/homogenizer.hpp"
 #include "systems/integrate.hpp"
+#include "systems/servo.hpp"
 #include "systems/spatial_sort.hpp"
 #include "systems/wrap.hpp"
 
@@ -22,8 +24,46 @@ std::vector<SystemSpec> build_systems(const Model& model) {
     systems.push_back(make_system<HertzMindlin>());
     systems.push_back(make_system<ForceGather>());
   }
+  if (model.servo.enabled) {
+    systems.push_back(make_system<Homogenizer>());
+    systems.push_back(make_system<Servo>());
+  }
   systems.push_back(make_system<IntegrateFinal>());
   return systems;
+}
+
+void validate(const ServoSettings& servo) {
+  const auto fail = [](const std::string& key, double value, const std::string& allowed) {
+    throw std::invalid_argument("servo." + key + " = " + std::to_string(value) + ": " + allowed);
+  };
+  if (!(servo.gain > 0.0) || !std::isfinite(servo.gain)) fail("gain", servo.gain, "must be a finite value > 0 1/s");
+  if (!(servo.max_rate > 0.0) || !std::isfinite(servo.max_rate))
+    fail("max_rate", servo.max_rate, "must be a finite value > 0 1/s");
+  if (servo.interval < 1) fail("interval", servo.interval, "must be >= 1 step");
+  if (!(servo.b >= 0.0 && servo.b <= 1.0)) fail("b", servo.b, "must be in [0, 1]");
+  for (int k = 0; k < 3; ++k)
+    if (!std::isfinite(servo.strain_rate[k]))
+      fail("strain_rate[" + std::to_string(k) + "]", servo.strain_rate[k], "must be finite");
+  const bool any_stress = servo.control[0] == AxisControl::stress || servo.control[1] == AxisControl::stress ||
+                          servo.control[2] == AxisControl::stress;
+  if (!any_stress) return;
+  switch (servo.path) {
+    case StressPath::isotropic:
+    case StressPath::constant_p_b:
+      if (!(servo.p > 0.0)) fail("p", servo.p, "must be > 0 Pa (compression positive)");
+      break;
+    case StressPath::constant_sigma3_b:
+      if (!(servo.sigma3 > 0.0)) fail("sigma3", servo.sigma3, "must be > 0 Pa (compression positive)");
+      break;
+    case StressPath::fixed:
+      for (int k = 0; k < 3; ++k)
+        if (servo.control[k] == AxisControl::stress && !(servo.target[k] > 0.0))
+          fail("target[" + std::to_string(k) + "]", servo.target[k], "must be > 0 Pa on a stress-controlled axis");
+      break;
+  }
+  if (servo.path != StressPath::fixed && servo.path != StressPath::isotropic &&
+      servo.control[0] != AxisControl::strain)
+    throw std::invalid_argument("servo.control[0] = stress: the constant-b paths drive axis 1 by strain");
 }
 
 void validate(const Model& model, const State& state) {
@@ -51,6 +91,7 @@ void validate(const Model& model, const State& state) {
   if (!(model.contact.rolling_damping >= 0.0))
     throw std::invalid_argument("contact.rolling_damping = " + std::to_string(model.contact.rolling_damping) +
                                 ": must be >= 0");
+  if (model.servo.enabled) validate(model.servo);
   for (std::size_t k = 0; k < state.particles.size(); ++k)
     if (state.particles.material[k] >= model.materials.size())
       throw std::invalid_argument("particle " + std::to_string(state.particles.id[k]) + ": material index " +
@@ -84,7 +125,14 @@ World::World(Model model, State state, std::vector<SystemSpec> systems, Executor
       state_(prepared(std::move(state), model_)),
       exec_(exec),
       graph_(std::move(systems), exec_) {
-  if (!initial_forces || graph_.find(Broadphase::name) == graph_.size()) return;
+  if (graph_.find(Broadphase::name) == graph_.size()) return;
+  if (!initial_forces) {
+    // The state holds its list and the forces of its last step (a checkpoint, or the previous
+    // stage of a test): only the gather index, which is scratch, is rebuilt from the pair list.
+    // Nothing else is recomputed, so continuing from here is bitwise the same as never stopping.
+    rebuild_gather_index(state_.contacts.pairs, state_.particles.size(), scratch_.gather);
+    return;
+  }
   // Forces of the initial configuration (LAMMPS `setup`): list build, contact law, gather, with
   // contact history frozen. Only the systems present in the graph are run.
   scratch_.setup = true;

@@ -206,16 +206,24 @@ void build_neighbor_list(const Model& model, State& state, Scratch& scratch, Exe
   pairs.reference_length = length;
   reference.assign(x.begin(), x.end());
 
-  // Gather index: i ranges are the build's per-particle slot ranges; j entries by counting sort.
-  gather.i_start.assign(bp.start.begin(), bp.start.end());
+  rebuild_gather_index(pairs, n, gather);
+  bp.cutoff = cutoff;
+  ++bp.builds;
+}
+
+void rebuild_gather_index(const ContactPairs& pairs, std::size_t n, GatherIndex& gather) {
+  const std::size_t m = pairs.size();
+  // i ranges: the list is sorted by i, so counts and a prefix sum give each particle's run.
+  gather.i_start.assign(n + 1, 0);
+  for (std::size_t k = 0; k < m; ++k) ++gather.i_start[pairs.i[k] + 1];
+  std::partial_sum(gather.i_start.begin(), gather.i_start.end(), gather.i_start.begin());
+  // j entries by counting sort, ascending pair index within a particle.
   gather.j_start.assign(n + 1, 0);
   for (std::size_t k = 0; k < m; ++k) ++gather.j_start[pairs.j[k] + 1];
   std::partial_sum(gather.j_start.begin(), gather.j_start.end(), gather.j_start.begin());
   gather.j_entry.resize(m);
-  bp.count.assign(gather.j_start.begin(), gather.j_start.end() - 1);
-  for (std::size_t k = 0; k < m; ++k) gather.j_entry[bp.count[pairs.j[k]]++] = static_cast<std::uint32_t>(k);
-  bp.cutoff = cutoff;
-  ++bp.builds;
+  gather.fill.assign(gather.j_start.begin(), gather.j_start.end() - 1);
+  for (std::size_t k = 0; k < m; ++k) gather.j_entry[gather.fill[pairs.j[k]]++] = static_cast<std::uint32_t>(k);
 }
 
 void Broadphase::run(const Model& model, State& state, Scratch& scratch, Executor& exec) {

@@ -35,6 +35,10 @@ struct Broadphase {
   static void run(const Model& model, State& state, Scratch& scratch, Executor& exec);
 };
 
+/// Rebuilds the CSR gather index from the pair list alone (which is sorted by i): for a World made
+/// from a state that already holds its list and forces (a checkpoint, the next stage of a test).
+void rebuild_gather_index(const ContactPairs& pairs, std::size_t n_particles, GatherIndex& gather);
+
 /// Builds the list unconditionally (used at scene start and by tests).
 void build_neighbor_list(const Model& model, State& state, Scratch& scratch, Executor& exec);
 

@@ -2,13 +2,10 @@
 
 namespace sandcell {
 
-Mat3 contact_stress(const State& state, Executor& exec) {
-  const ContactPairs& pairs = state.contacts.pairs;
-  const auto& force = state.contacts.forces.force;
-  const auto& x = state.particles.position;
-  const Vec3 length = state.cell.length;
+Mat3 contact_stress_sum(const ContactPairs& pairs, const std::vector<Vec3>& force, const std::vector<Vec3>& x,
+                        const Vec3& length, Executor& exec) {
   const std::size_t m = std::min(pairs.size(), force.size());
-  const Mat3 sum = exec.deterministic_reduce(
+  return exec.deterministic_reduce(
       m, 4096, Mat3(Mat3::Zero()),
       [&](std::size_t b, std::size_t e) {
         Mat3 s = Mat3::Zero();
@@ -21,6 +18,11 @@ Mat3 contact_stress(const State& state, Executor& exec) {
         return s;
       },
       [](const Mat3& a, const Mat3& b) { return Mat3(a + b); });
+}
+
+Mat3 contact_stress(const State& state, Executor& exec) {
+  const Mat3 sum = contact_stress_sum(state.contacts.pairs, state.contacts.forces.force, state.particles.position,
+                                      state.cell.length, exec);
   const Mat3 stress = sum / state.cell.volume();
   return 0.5 * (stress + stress.transpose());
 }

@@ -1,0 +1,65 @@
+#include "systems/servo.hpp"
+
+#include "systems/homogenizer.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+namespace sandcell {
+
+Vec3 path_targets(const ServoSettings& servo, double s1) {
+  switch (servo.path) {
+    case StressPath::fixed: return servo.target;
+    case StressPath::isotropic: return Vec3::Constant(servo.p);
+    case StressPath::constant_p_b: {
+      // From p = (s1 + s2 + s3)/3 and b = (s2 - s3)/(s1 - s3), solved for s2 and s3.
+      const double p = servo.p, b = servo.b;
+      return Vec3(s1, (3.0 * p * (1.0 - b) + (2.0 * b - 1.0) * s1) / (2.0 - b), (3.0 * p - (1.0 + b) * s1) / (2.0 - b));
+    }
+    case StressPath::constant_sigma3_b: {
+      const double s3 = servo.sigma3, b = servo.b;
+      return Vec3(s1, b * s1 + (1.0 - b) * s3, s3);
+    }
+  }
+  return servo.target;
+}
+
+namespace {
+// The path's own stress scale: errors are normalized by |sigma*_k| (DESIGN 3.6), floored at a
+// thousandth of this scale so a target passing through zero (constant p at eta near 3) cannot
+// divide by zero.
+double stress_scale(const ServoSettings& servo) {
+  switch (servo.path) {
+    case StressPath::isotropic:
+    case StressPath::constant_p_b: return std::abs(servo.p);
+    case StressPath::constant_sigma3_b: return std::abs(servo.sigma3);
+    case StressPath::fixed: break;
+  }
+  return servo.target.cwiseAbs().maxCoeff();
+}
+}  // namespace
+
+Vec3 servo_strain_rates(const ServoSettings& servo, const Vec3& sigma) {
+  const Vec3 target = path_targets(servo, sigma[0]);
+  const double floor = 1e-3 * stress_scale(servo);
+  Vec3 rate;
+  for (int k = 0; k < 3; ++k) {
+    if (servo.control[k] == AxisControl::strain) {
+      rate[k] = servo.strain_rate[k];
+    } else {
+      const double error = (target[k] - sigma[k]) / std::max(std::abs(target[k]), floor);
+      rate[k] = std::clamp(servo.gain * error, -servo.max_rate, servo.max_rate);
+    }
+  }
+  return rate;
+}
+
+void Servo::run(const Model& model, State& state, Scratch& scratch, Executor&) {
+  if (!servo_due(model.servo, state.clock.step)) return;
+  const MeasuredStress& measured = scratch.read<Component::stress>();
+  Cell& cell = state.write<Component::cell>();
+  const Vec3 rate = servo_strain_rates(model.servo, measured.stress.diagonal());
+  cell.rate = -rate;  // D_kk is tension positive
+}
+
+}  // namespace sandcell

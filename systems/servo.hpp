@@ -1,0 +1,31 @@
+#pragma once
+// Periodic servo (DESIGN 3.6, Huang et al. 2014 style): per-axis strain rates of the cell from the
+// stress the homogenizer measured in the same step.
+//   stress-controlled axis k: eps_dot_k = clamp(g (sigma*_k - sigma_k)/|sigma*_k|, -max, +max)
+//   strain-controlled axis k: eps_dot_k = the set rate
+// (soil convention, compression positive; the cell's D_kk = -eps_dot_k). The targets sigma*_k are
+// recomputed every servo step from the measured sigma1 = S_xx by the path's formulas.
+// The servo keeps no memory between steps (a proportional law), so nothing of it needs resetting
+// between stages beyond the cell rates each stage starts from, and nothing of it is checkpointed
+// beyond those rates.
+// Reads the `stress` scratch component; writes the cell (rates only). Acts on servo steps only.
+#include "engine/system.hpp"
+
+namespace sandcell {
+
+struct Servo {
+  static constexpr std::string_view name = "servo";
+  static constexpr ComponentMask reads = mask_of({Component::stress});
+  static constexpr ComponentMask writes = mask_of({Component::cell});
+  static void run(const Model& model, State& state, Scratch& scratch, Executor& exec);
+};
+
+/// Target principal stresses (sigma1*, sigma2*, sigma3*), Pa, compression positive, of the path
+/// given the measured sigma1. sigma1* is meaningful only for the isotropic and fixed paths (axis 1
+/// is strain controlled on the others; there it is returned as s1 itself).
+Vec3 path_targets(const ServoSettings& servo, double sigma1);
+
+/// Cell strain rates (compression positive, 1/s) the servo sets for a measured stress diagonal.
+Vec3 servo_strain_rates(const ServoSettings& servo, const Vec3& sigma);
+
+}  // namespace sandcell

@@ -1,0 +1,165 @@
+// Stress homogenizer and state measures (DESIGN 3.5): the Love-Weber stress of a strained
+// simple-cubic lattice against the analytic Hertz value, symmetry, the virial of an independent
+// brute-force force computation, and the derived measures (invariants, Lode angle, void ratio,
+// coordination, rattlers).
+#include "engine/world.hpp"
+#include "support/scenes.hpp"
+#include "systems/homogenizer.hpp"
+
+#include <doctest/doctest.h>
+
+#include <cmath>
+#include <numbers>
+
+using namespace sandcell;
+
+namespace {
+
+Model elastic_model() {
+  Model m;
+  Material mat;
+  mat.young = 70e9;
+  mat.poisson = 0.3;
+  mat.restitution = 0.5;
+  mat.friction = 0.5;
+  mat.rolling_friction = 0.1;
+  m.materials = {mat};
+  m.dt = 1e-8;
+  m.contact.skin = 0.05e-3;
+  return m;
+}
+
+// E* of two identical spheres: 1/E* = 2 (1 - nu^2)/E.
+double e_star(const Material& m) { return m.young / (2.0 * (1.0 - m.poisson * m.poisson)); }
+
+}  // namespace
+
+TEST_CASE("homogenizer: strained simple-cubic lattice gives the analytic Hertz stress") {
+  // n^3 spheres of radius R on a lattice with spacing a_k = 2R - delta_k per axis: each sphere
+  // touches its 6 axis neighbours with overlap delta_k, force F_k = 4/3 E* sqrt(R* delta_k) delta_k
+  // (R* = R/2), and the cell holds n^3 contacts per axis with branch a_k, so
+  // sigma_kk = n^3 F_k a_k / (n^3 a_1 a_2 a_3) = F_k / (a_l a_m); off-diagonals are zero.
+  const Model model = elastic_model();
+  const double r = 1e-3;
+  const Vec3 delta(2e-6, 1e-6, 0.5e-6);
+  const int n = 4;
+  State s;
+  Vec3 a;
+  for (int k = 0; k < 3; ++k) a[k] = 2.0 * r - delta[k];
+  s.cell.length = s.cell.length0 = a * n;
+  ParticleId id = 0;
+  for (int z = 0; z < n; ++z)
+    for (int y = 0; y < n; ++y)
+      for (int x = 0; x < n; ++x) add_sphere(s, model, id++, Vec3((x + 0.5) * a[0], (y + 0.5) * a[1], (z + 0.5) * a[2]), r, 0);
+  World world(model, std::move(s), ExecutorConfig{Backend::serial});
+  const Measures m = measure(world.model(), world.state(), world.executor());
+  const double es = e_star(model.materials[0]);
+  for (int k = 0; k < 3; ++k) {
+    const double force = 4.0 / 3.0 * es * std::sqrt(0.5 * r * delta[k]) * delta[k];
+    const double expected = force * a[k] / (a[0] * a[1] * a[2]);
+    // Round-off only: one overlap is 2R - |branch| with |branch| ~ 2R, so delta carries a relative
+    // error of ~eps 2R/delta = 2.2e-16 * 4e3 ~ 1e-12; the 1.5 power makes it 1.5e-12. 1e-9 leaves room.
+    CHECK(m.stress(k, k) == doctest::Approx(expected).epsilon(1e-9));
+  }
+  CHECK(std::abs(m.stress(0, 1)) < 1e-9 * m.stress(0, 0));
+  CHECK(std::abs(m.stress(0, 2)) < 1e-9 * m.stress(0, 0));
+  CHECK(std::abs(m.stress(1, 2)) < 1e-9 * m.stress(0, 0));
+  CHECK(m.contacts == static_cast<std::size_t>(3 * n * n * n));
+  CHECK(m.z == doctest::Approx(6.0));
+  CHECK(m.z_mech == doctest::Approx(6.0));
+  CHECK(m.rattlers == 0);
+  // Fabric of an axis-aligned lattice: 1/3 on the diagonal.
+  for (int k = 0; k < 3; ++k) CHECK(m.fabric(k, k) == doctest::Approx(1.0 / 3.0));
+  // Void ratio: V / V_s - 1 with V_s = n^3 4/3 pi R^3 (overlap volume is not subtracted, DESIGN 3.5).
+  const double vs = n * n * n * 4.0 / 3.0 * std::numbers::pi * r * r * r;
+  CHECK(m.void_ratio == doctest::Approx(a.prod() * n * n * n / vs - 1.0).epsilon(1e-14));
+  // Equilibrium: every sphere's forces cancel by symmetry (to round-off).
+  CHECK(m.unbalanced < 1e-9);
+}
+
+TEST_CASE("homogenizer: stress is symmetric and equals the virial of independently computed forces") {
+  // A jittered, sheared dense lattice with spinning spheres: tangential forces make f (x) r
+  // non-symmetric per contact. The reference sums f (x) r over a brute-force all-images pair search,
+  // with the normal Hertz force recomputed here (first step from rest, frictionless: the contact
+  // force is exactly normal and elastic at setup, since the velocities are zero).
+  Model model = elastic_model();
+  model.materials[0].friction = 0.0;
+  model.contact.rolling = RollingModel::none;
+  State s = test::jittered_lattice(model, 5, 2e-3, 1.01e-3, 1.03e-3, 0.02e-3, 0.0, 0.0, 7);
+  World world(model, s, ExecutorConfig{Backend::tbb, 2});
+  const Measures m = measure(world.model(), world.state(), world.executor());
+  const State& st = world.state();
+  const Particles& p = st.particles;
+  const double es = e_star(model.materials[0]);
+  Mat3 virial = Mat3::Zero();
+  for (std::size_t i = 0; i < p.size(); ++i)
+    for (std::size_t j = i + 1; j < p.size(); ++j)
+      for (int nx = -1; nx <= 1; ++nx)
+        for (int ny = -1; ny <= 1; ++ny)
+          for (int nz = -1; nz <= 1; ++nz) {
+            const Vec3 r = p.position[i] - p.position[j] - Vec3(nx * st.cell.length[0], ny * st.cell.length[1], nz * st.cell.length[2]);
+            const double d = r.norm(), overlap = p.radius[i] + p.radius[j] - d;
+            if (overlap <= 0.0) continue;
+            const double rs = p.radius[i] * p.radius[j] / (p.radius[i] + p.radius[j]);
+            const Vec3 f = 4.0 / 3.0 * es * std::sqrt(rs * overlap) * overlap * r / d;
+            virial += f * r.transpose();
+          }
+  virial /= st.cell.volume();
+  const double scale = virial.cwiseAbs().maxCoeff();
+  // Same terms summed in another order: ~1e3 contacts of similar size, round-off ~1e3 eps relative.
+  CHECK((m.stress - virial).cwiseAbs().maxCoeff() < 1e-10 * scale);
+  CHECK((m.stress - m.stress.transpose()).cwiseAbs().maxCoeff() == 0.0);
+  CHECK(m.inv.p > 0.0);
+}
+
+TEST_CASE("invariants: p, q, b and the Lode angle by hand") {
+  // Principal values 3, 2, 1 MPa: p = 2, q = sqrt((1 + 1 + 4)/2) = sqrt(3), b = 0.5,
+  // theta = atan(sqrt(3) 0.5 / 1.5) = atan(1/sqrt(3)) = 30 deg.
+  Mat3 s = Vec3(2e6, 3e6, 1e6).asDiagonal();  // axis order must not matter
+  StressInvariants inv = invariants(s);
+  CHECK(inv.principal[0] == 3e6);
+  CHECK(inv.principal[2] == 1e6);
+  CHECK(inv.p == doctest::Approx(2e6).epsilon(1e-15));
+  CHECK(inv.q == doctest::Approx(std::sqrt(3.0) * 1e6).epsilon(1e-15));
+  CHECK(inv.b == doctest::Approx(0.5).epsilon(1e-15));
+  CHECK(inv.theta == doctest::Approx(std::numbers::pi / 6.0).epsilon(1e-15));
+  // Triaxial compression (b = 0, theta = 0) and extension (b = 1, theta = 60 deg).
+  CHECK(invariants(Vec3(3e6, 1e6, 1e6).asDiagonal()).theta == 0.0);
+  CHECK(invariants(Vec3(3e6, 3e6, 1e6).asDiagonal()).theta == doctest::Approx(std::numbers::pi / 3.0).epsilon(1e-15));
+  // A rotated tensor has the same invariants (eigen-decomposition path): rotate diag(3,2,1) by 30
+  // degrees about z and 45 about x; the solver's relative accuracy is ~1e-15 of the largest value.
+  const Mat3 rot = (Eigen::AngleAxisd(0.5, Vec3::UnitZ()) * Eigen::AngleAxisd(0.8, Vec3::UnitX())).toRotationMatrix();
+  const StressInvariants r = invariants(rot * Vec3(3e6, 2e6, 1e6).asDiagonal() * rot.transpose());
+  CHECK(r.principal[0] == doctest::Approx(3e6).epsilon(1e-12));
+  CHECK(r.principal[1] == doctest::Approx(2e6).epsilon(1e-12));
+  CHECK(r.b == doctest::Approx(0.5).epsilon(1e-12));
+}
+
+TEST_CASE("measures: rattlers are removed recursively from the mechanical coordination") {
+  // A chain of three spheres along x in a long cell: the two ends have one contact each (rattlers);
+  // removing them leaves the middle one with none, so it is a rattler too: Z_mech = 0, Z = 4/3.
+  Model model = elastic_model();
+  State s;
+  const double r = 1e-3;
+  s.cell.length = s.cell.length0 = Vec3(20e-3, 10e-3, 10e-3);
+  add_sphere(s, model, 0, Vec3(5e-3, 5e-3, 5e-3), r, 0);
+  add_sphere(s, model, 1, Vec3(5e-3 + 1.999e-3, 5e-3, 5e-3), r, 0);
+  add_sphere(s, model, 2, Vec3(5e-3 + 3.998e-3, 5e-3, 5e-3), r, 0);
+  World world(model, std::move(s), ExecutorConfig{Backend::serial});
+  const Measures m = measure(world.model(), world.state(), world.executor());
+  CHECK(m.contacts == 2);
+  CHECK(m.z == doctest::Approx(4.0 / 3.0));
+  CHECK(m.rattlers == 3);
+  CHECK(m.z_mech == 0.0);
+}
+
+TEST_CASE("median_diameter: 50 % passing by mass") {
+  // Masses ~ d^3: one sphere of d = 2 weighs as much as eight of d = 1, so the 50 % mass point lies
+  // in the big sphere whatever the count of small ones below 8.
+  Model model = elastic_model();
+  State s;
+  s.cell.length = Vec3::Constant(1.0);
+  for (int k = 0; k < 7; ++k) add_sphere(s, model, k, Vec3(0.1 * k, 0, 0), 0.5e-3, 0);
+  add_sphere(s, model, 7, Vec3(0.9, 0, 0), 1e-3, 0);
+  CHECK(median_diameter(s.particles) == 2e-3);
+}
