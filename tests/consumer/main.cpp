@@ -1,11 +1,13 @@
 // Builds a two-sphere scene through the installed headers and steps it: v = 1 m/s for 1000 steps
 // of 1e-4 s moves the sphere 0.1 m.
+#include <engine/checkpoint.hpp>
 #include <engine/world.hpp>
 
 #include <cmath>
 #include <cstdio>
+#include <filesystem>
 
-int main() {
+int main(int, char** argv) {
   sandcell::Model model;
   model.dt = 1e-4;
   model.materials.push_back(sandcell::Material{});
@@ -18,5 +20,11 @@ int main() {
   world.step(1000);
   const double x = world.state().particles.position[0].x();
   std::printf("consumer: x = %.12f\n", x);
-  return std::abs(x - 0.3) < 1e-12 ? 0 : 1;
+  // A checkpoint round trip, so that the consumer links HDF5 through the package config.
+  // Beside the executable: its build tree is this run's own.
+  const std::filesystem::path ckpt = std::filesystem::absolute(argv[0]).parent_path() / "consumer_ckpt.h5";
+  sandcell::write_checkpoint(ckpt, world.state());
+  const double x_back = sandcell::read_checkpoint(ckpt).particles.position[0].x();
+  std::filesystem::remove(ckpt);
+  return std::abs(x - 0.3) < 1e-12 && x_back == x ? 0 : 1;
 }

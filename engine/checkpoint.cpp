@@ -1,0 +1,164 @@
+#include "engine/checkpoint.hpp"
+
+#include "engine/field_io.hpp"
+#include "engine/version.hpp"
+
+#include <stdexcept>
+
+namespace sandcell {
+
+namespace {
+
+constexpr std::string_view k_format = "sandcell checkpoint";
+
+std::span<const double> as_span(const Vec3& v) { return {v.data(), 3}; }
+
+Vec3 to_vec3(const h5::Node& node, std::string_view name) {
+  const std::vector<double> v = node.get_values<double>(name);
+  if (v.size() != 3) node.fail("attribute '" + std::string(name) + "' must hold 3 values");
+  return Vec3(v[0], v[1], v[2]);
+}
+
+// Refuses a State whose arrays disagree in length: a checkpoint of it could not be read back.
+void check_sizes(const State& state) {
+  const std::size_t n = state.particles.size();
+  for_each_particle_field(state.particles, [n](const FieldInfo& info, const auto& v) {
+    if (v.size() != n)
+      throw std::invalid_argument("write_checkpoint: particle field '" + std::string(info.name) + "' has " +
+                                  std::to_string(v.size()) + " entries, id has " + std::to_string(n));
+  });
+  const std::size_t m = state.contacts.size();
+  for_each_contact_field(state.contacts, [m](const FieldInfo& info, const auto& v) {
+    if (v.size() != m)
+      throw std::invalid_argument("write_checkpoint: contact field '" + std::string(info.name) + "' has " +
+                                  std::to_string(v.size()) + " entries, id_i has " + std::to_string(m));
+  });
+}
+
+// Keys become HDF5 link names, where '/' separates groups and "." is the group itself.
+void check_key(const std::string& key, std::string_view map) {
+  if (key.empty() || key == "." || key.find('/') != std::string::npos)
+    throw std::invalid_argument("write_checkpoint: extra." + std::string(map) + " key '" + key +
+                                "' is not a valid name (non-empty, no '/', not \".\")");
+}
+
+void write_contents(h5::File& file, const State& state, const CheckpointExtra& extra) {
+  h5::Group root = file.root();
+  root.set_string("format", k_format);
+  root.set_value<std::int64_t>("schema_version", k_checkpoint_schema);
+  root.set_string("software_version", version());
+
+  h5::Group particles = root.create_group("particles");
+  particles.set_value<std::uint64_t>("count", state.particles.size());
+  for_each_particle_field(state.particles,
+                          [&](const FieldInfo& info, const auto& v) { io::write_field(particles, info, v); });
+
+  h5::Group contacts = root.create_group("contacts");
+  contacts.set_value<std::uint64_t>("count", state.contacts.size());
+  contacts.set_value<std::int64_t>("has_rolling", state.contacts.has_rolling ? 1 : 0);
+  contacts.set_values<double>("reference_length", as_span(state.contacts.pairs.reference_length));
+  for_each_contact_field(state.contacts,
+                         [&](const FieldInfo& info, const auto& v) { io::write_field(contacts, info, v); });
+
+  h5::Group cell = root.create_group("cell");
+  cell.set_values<double>("length", as_span(state.cell.length));
+  cell.set_values<double>("length0", as_span(state.cell.length0));
+  cell.set_values<double>("rate", as_span(state.cell.rate));
+
+  h5::Group clock = root.create_group("clock");
+  clock.set_value<std::uint64_t>("step", state.clock.step);
+  clock.set_value<double>("time", state.clock.time);
+
+  h5::Group ex = root.create_group("extra");
+  h5::Group doubles = ex.create_group("doubles");
+  for (const auto& [key, values] : extra.doubles) {
+    const std::uint64_t shape[1] = {values.size()};
+    doubles.create_dataset<double>(key, values, shape);
+  }
+  h5::Group integers = ex.create_group("integers");
+  for (const auto& [key, values] : extra.integers) {
+    const std::uint64_t shape[1] = {values.size()};
+    integers.create_dataset<std::int64_t>(key, values, shape);
+  }
+  h5::Group strings = ex.create_group("strings");
+  for (const auto& [key, text] : extra.strings) strings.set_string(key, text);
+}
+
+}  // namespace
+
+void write_checkpoint(const std::filesystem::path& path, const State& state, const CheckpointExtra& extra) {
+  check_sizes(state);
+  for (const auto& kv : extra.doubles) check_key(kv.first, "doubles");
+  for (const auto& kv : extra.integers) check_key(kv.first, "integers");
+  std::error_code ec;
+  if (std::filesystem::is_directory(path, ec))
+    throw std::runtime_error("write_checkpoint: " + path.string() + " is a directory");
+
+  const std::filesystem::path tmp = io::temporary_path(path);
+  try {
+    h5::File file = h5::File::create(tmp);
+    write_contents(file, state, extra);
+    file.flush();
+    file.close();
+  } catch (const std::exception& e) {
+    std::filesystem::remove(tmp, ec);
+    throw std::runtime_error("write_checkpoint: " + path.string() + " not written: " + e.what());
+  }
+  try {
+    io::commit_file(tmp, path);
+  } catch (const std::exception& e) {
+    throw std::runtime_error(std::string("write_checkpoint: ") + e.what());
+  }
+}
+
+State read_checkpoint(const std::filesystem::path& path, CheckpointExtra* extra) {
+  const h5::File file = h5::File::open(path, h5::File::Mode::read);
+  State state;
+  {
+    const h5::Group root = file.root();
+    if (!root.has_attribute("format") || root.get_string("format") != k_format)
+      root.fail("not a sandcell checkpoint (no attribute format = \"" + std::string(k_format) + "\")");
+    const std::int64_t schema = root.get_value<std::int64_t>("schema_version");
+    if (schema != k_checkpoint_schema)
+      root.fail("checkpoint schema version " + std::to_string(schema) + " (written by sandcell " +
+                (root.has_attribute("software_version") ? root.get_string("software_version") : "?") +
+                "), this build reads version " + std::to_string(k_checkpoint_schema));
+
+    const h5::Group particles = root.open_group("particles");
+    const std::uint64_t n = particles.get_value<std::uint64_t>("count");
+    for_each_particle_field(state.particles,
+                            [&](const FieldInfo& info, auto& v) { io::read_field(particles, info, v, n); });
+
+    const h5::Group contacts = root.open_group("contacts");
+    const std::uint64_t m = contacts.get_value<std::uint64_t>("count");
+    // Before the walk: the registry lists `rolling` only when it is allocated.
+    state.contacts.has_rolling = contacts.get_value<std::int64_t>("has_rolling") != 0;
+    state.contacts.pairs.reference_length = to_vec3(contacts, "reference_length");
+    for_each_contact_field(state.contacts,
+                           [&](const FieldInfo& info, auto& v) { io::read_field(contacts, info, v, m); });
+
+    const h5::Group cell = root.open_group("cell");
+    state.cell.length = to_vec3(cell, "length");
+    state.cell.length0 = to_vec3(cell, "length0");
+    state.cell.rate = to_vec3(cell, "rate");
+
+    const h5::Group clock = root.open_group("clock");
+    state.clock.step = clock.get_value<std::uint64_t>("step");
+    state.clock.time = clock.get_value<double>("time");
+
+    if (extra != nullptr) {
+      *extra = CheckpointExtra{};
+      const h5::Group ex = root.open_group("extra");
+      const h5::Group doubles = ex.open_group("doubles");
+      for (const std::string& key : doubles.children()) extra->doubles[key] = doubles.open_dataset(key).read<double>();
+      const h5::Group integers = ex.open_group("integers");
+      for (const std::string& key : integers.children())
+        extra->integers[key] = integers.open_dataset(key).read<std::int64_t>();
+      const h5::Group strings = ex.open_group("strings");
+      for (const std::string& key : strings.attribute_names()) extra->strings[key] = strings.get_string(key);
+    }
+  }
+  return state;
+}
+
+}  // namespace sandcell
