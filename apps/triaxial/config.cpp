@@ -1,0 +1,393 @@
+#include "config.hpp"
+
+#include <toml++/toml.h>
+
+#include <cmath>
+#include <cstdio>
+#include <set>
+#include <sstream>
+
+namespace sandcell::triaxial {
+
+const char* const k_default_config = R"(# sandcell triaxial: the embedded default test.
+# ~2000 spheres (d = 5-7.5 mm, uniform by number), prepared isotropically at 0.5 MPa with a
+# frictionless preparation, then sheared along constant p = 0.5 MPa with b = 0.5 to 20 % axial
+# strain. Every key and its range: apps/triaxial/README.md.
+[sample]
+count = 2000
+distribution = "uniform"
+d_min = 5.0e-3
+d_max = 7.5e-3
+solid_fraction = 0.3
+seed = 1
+
+[material]
+density = 2650.0
+young = 70.0e9
+poisson = 0.3
+restitution = 0.5
+friction = 0.5
+rolling_friction = 0.1
+
+[time]
+dt_fraction = 0.2
+
+[prepare]
+friction = 0.0
+
+[shear]
+strain_rate = 1.0
+max_axial_strain = 0.2
+
+[tests]
+path = "constant_p"
+b = 0.5
+p0 = 0.5e6
+
+[output]
+series_interval = 1000
+)";
+
+namespace {
+
+std::string num(double v) {
+  char buf[64];
+  std::snprintf(buf, sizeof buf, "%.6g", v);
+  return buf;
+}
+
+// Reads one table, remembering which keys were used so that unknown ones can be reported.
+class Section {
+ public:
+  Section(const toml::table* table, std::string name, const std::string& source)
+      : table_(table), name_(std::move(name)), source_(source) {}
+
+  [[noreturn]] void fail(const std::string& key, const std::string& value, const std::string& allowed) const {
+    throw ConfigError(source_ + ": " + name_ + "." + key + " = " + value + ": " + allowed);
+  }
+
+  const toml::node* get(const std::string& key) {
+    used_.insert(key);
+    return table_ ? table_->get(key) : nullptr;
+  }
+
+  void number(const std::string& key, double& out, double lo, double hi, const std::string& allowed) {
+    const toml::node* node = get(key);
+    if (!node) return;
+    double v = 0.0;
+    if (auto f = node->value_exact<double>()) v = *f;
+    else if (auto i = node->value_exact<std::int64_t>()) v = static_cast<double>(*i);
+    else fail(key, describe(*node), "expected a number, " + allowed);
+    if (!(v >= lo && v <= hi) || !std::isfinite(v)) fail(key, num(v), allowed);
+    out = v;
+  }
+  void positive(const std::string& key, double& out, const std::string& units) {
+    number(key, out, std::nextafter(0.0, 1.0), HUGE_VAL, "must be > 0 " + units);
+  }
+  void integer(const std::string& key, std::uint64_t& out, std::uint64_t lo, std::uint64_t hi, const std::string& allowed) {
+    const toml::node* node = get(key);
+    if (!node) return;
+    auto i = node->value_exact<std::int64_t>();
+    if (!i) fail(key, describe(*node), "expected an integer, " + allowed);
+    if (*i < 0 || static_cast<std::uint64_t>(*i) < lo || static_cast<std::uint64_t>(*i) > hi)
+      fail(key, std::to_string(*i), allowed);
+    out = static_cast<std::uint64_t>(*i);
+  }
+  void integer(const std::string& key, int& out, int lo, int hi, const std::string& allowed) {
+    std::uint64_t v = static_cast<std::uint64_t>(std::max(out, 0));
+    const toml::node* node = get(key);
+    if (!node) return;
+    auto i = node->value_exact<std::int64_t>();
+    if (!i) fail(key, describe(*node), "expected an integer, " + allowed);
+    if (*i < lo || *i > hi) fail(key, std::to_string(*i), allowed);
+    v = static_cast<std::uint64_t>(*i);
+    out = static_cast<int>(v);
+  }
+  void boolean(const std::string& key, bool& out) {
+    const toml::node* node = get(key);
+    if (!node) return;
+    auto b = node->value_exact<bool>();
+    if (!b) fail(key, describe(*node), "expected true or false");
+    out = *b;
+  }
+  bool string(const std::string& key, std::string& out) {
+    const toml::node* node = get(key);
+    if (!node) return false;
+    auto s = node->value_exact<std::string>();
+    if (!s) fail(key, describe(*node), "expected a string");
+    out = *s;
+    return true;
+  }
+  template <class E>
+  void choice(const std::string& key, E& out, std::initializer_list<std::pair<const char*, E>> options) {
+    std::string s;
+    if (!string(key, s)) return;
+    std::string allowed = "allowed:";
+    for (const auto& [text, value] : options) {
+      if (s == text) {
+        out = value;
+        return;
+      }
+      allowed += std::string(" \"") + text + "\"";
+    }
+    fail(key, "\"" + s + "\"", allowed);
+  }
+  /// A number or an array of numbers.
+  std::vector<double> numbers(const std::string& key, const std::string& allowed) {
+    const toml::node* node = get(key);
+    std::vector<double> out;
+    if (!node) return out;
+    const auto one = [&](const toml::node& n, const std::string& where) {
+      if (auto f = n.value_exact<double>()) return *f;
+      if (auto i = n.value_exact<std::int64_t>()) return static_cast<double>(*i);
+      fail(where, describe(n), "expected a number, " + allowed);
+    };
+    if (const toml::array* a = node->as_array()) {
+      for (std::size_t k = 0; k < a->size(); ++k) out.push_back(one(*a->get(k), key + "[" + std::to_string(k) + "]"));
+      if (out.empty()) fail(key, "[]", "expected at least one value, " + allowed);
+    } else {
+      out.push_back(one(*node, key));
+    }
+    return out;
+  }
+  std::vector<std::string> strings(const std::string& key) {
+    const toml::node* node = get(key);
+    std::vector<std::string> out;
+    if (!node) return out;
+    const auto one = [&](const toml::node& n, const std::string& where) {
+      if (auto s = n.value_exact<std::string>()) return *s;
+      fail(where, describe(n), "expected a string");
+    };
+    if (const toml::array* a = node->as_array()) {
+      for (std::size_t k = 0; k < a->size(); ++k) out.push_back(one(*a->get(k), key + "[" + std::to_string(k) + "]"));
+      if (out.empty()) fail(key, "[]", "expected at least one value");
+    } else {
+      out.push_back(one(*node, key));
+    }
+    return out;
+  }
+  void check_unknown() const {
+    if (!table_) return;
+    for (const auto& [key, node] : *table_)
+      if (!used_.count(std::string(key.str()))) {
+        std::string allowed = "unknown key; allowed keys in [" + name_ + "]:";
+        for (const std::string& k : used_) allowed += " " + k;
+        fail(std::string(key.str()), describe(node), allowed);
+      }
+  }
+  static std::string describe(const toml::node& node) {
+    std::ostringstream out;
+    if (node.is_string()) out << '"' << *node.value<std::string>() << '"';
+    else if (node.is_table()) out << "(a table)";
+    else if (node.is_array()) out << "(an array)";
+    else node.visit([&](const auto& v) { out << v; });
+    return out.str();
+  }
+
+ private:
+  const toml::table* table_;
+  std::string name_;
+  const std::string& source_;
+  std::set<std::string> used_;
+};
+
+}  // namespace
+
+const char* path_name(ShearPath path) {
+  switch (path) {
+    case ShearPath::constant_p: return "constant_p";
+    case ShearPath::constant_sigma3: return "constant_sigma3";
+    case ShearPath::strain: return "strain";
+  }
+  return "?";
+}
+
+Config parse_config(const std::string& text, const std::string& source) {
+  Config c;
+  c.text = text;
+  c.source = source;
+  toml::table root;
+  try {
+    root = toml::parse(text, source);
+  } catch (const toml::parse_error& e) {
+    const auto& where = e.source().begin;
+    throw ConfigError(source + ":" + std::to_string(where.line) + ":" + std::to_string(where.column) +
+                      ": TOML syntax error: " + std::string(e.description()));
+  }
+  static const char* const sections[] = {"sample", "material", "contact", "time", "prepare", "shear", "tests", "output"};
+  for (const auto& [key, node] : root) {
+    bool known = false;
+    for (const char* s : sections) known = known || key.str() == s;
+    if (!known || !node.is_table())
+      throw ConfigError(source + ": [" + std::string(key.str()) + "]: " + (known ? "must be a table" : "unknown section") +
+                        "; allowed sections: [sample] [material] [contact] [time] [prepare] [shear] [tests] [output]");
+  }
+  const auto table = [&](const char* name) { return root.get_as<toml::table>(name); };
+
+  {
+    Section s(table("sample"), "sample", source);
+    GenerationSettings& g = c.sample.generation;
+    g.count = 2000;
+    g.sizes.d_min = 5.0e-3;
+    g.sizes.d_max = 7.5e-3;
+    s.string("file", c.sample.packing_file);
+    s.integer("count", g.count, 2, 10'000'000, "must be an integer in [2, 1e7]");
+    s.choice("distribution", g.sizes.kind,
+             {{"uniform", SizeDistribution::Kind::uniform}, {"gradation", SizeDistribution::Kind::gradation}});
+    s.positive("d_min", g.sizes.d_min, "m");
+    s.positive("d_max", g.sizes.d_max, "m");
+    if (const toml::node* node = s.get("gradation")) {
+      const toml::array* rows = node->as_array();
+      if (!rows) s.fail("gradation", Section::describe(*node), "expected an array of [diameter m, percent passing] rows");
+      for (std::size_t k = 0; k < rows->size(); ++k) {
+        const toml::array* row = rows->get(k)->as_array();
+        const auto value = [&](std::size_t q) -> std::optional<double> {
+          if (!row || row->size() != 2) return std::nullopt;
+          if (auto f = row->get(q)->value_exact<double>()) return *f;
+          if (auto i = row->get(q)->value_exact<std::int64_t>()) return static_cast<double>(*i);
+          return std::nullopt;
+        };
+        const auto d = value(0), pct = value(1);
+        if (!d || !pct)
+          s.fail("gradation[" + std::to_string(k) + "]", Section::describe(*rows->get(k)),
+                 "expected [diameter m, percent passing], two numbers");
+        g.sizes.table.emplace_back(*d, *pct);
+      }
+    }
+    s.number("solid_fraction", g.solid_fraction, 1e-6, 0.35, "must be in (0, 0.35] (random placement jams near 0.38)");
+    s.integer("seed", g.seed, 0, UINT64_MAX, "must be an integer >= 0");
+    s.check_unknown();
+    if (g.sizes.kind == SizeDistribution::Kind::gradation && g.sizes.table.empty())
+      s.fail("gradation", "(missing)", "required when distribution = \"gradation\"");
+    if (c.sample.packing_file.empty()) {
+      try {
+        validate(g);
+      } catch (const std::invalid_argument& e) {
+        throw ConfigError(source + ": " + e.what());
+      }
+    }
+  }
+  {
+    Section s(table("material"), "material", source);
+    Material& m = c.material;
+    s.positive("density", m.density, "kg/m^3");
+    s.positive("young", m.young, "Pa");
+    s.number("poisson", m.poisson, -0.999, 0.499, "must be in (-1, 0.5)");
+    s.number("restitution", m.restitution, 1e-6, 1.0, "must be in (0, 1]");
+    s.number("friction", m.friction, 0.0, 10.0, "must be in [0, 10]");
+    s.number("rolling_friction", m.rolling_friction, 0.0, 10.0, "must be in [0, 10]");
+    s.check_unknown();
+  }
+  {
+    Section s(table("contact"), "contact", source);
+    ContactSettings& k = c.contact;
+    k.skin = 0.0;
+    k.sort_interval = 1000;
+    s.choice("tangential", k.tangential,
+             {{"history", TangentialModel::history}, {"incremental", TangentialModel::incremental}});
+    s.choice("rolling", k.rolling,
+             {{"epsd2", RollingModel::epsd2}, {"epsd", RollingModel::epsd}, {"cdt", RollingModel::cdt},
+              {"none", RollingModel::none}});
+    s.number("rolling_damping", k.rolling_damping, 0.0, 10.0, "must be in [0, 10]");
+    s.number("skin", k.skin, 0.0, 1.0, "must be in [0, 1] m (0: 0.1 x the smallest diameter)");
+    s.integer("sort_interval", k.sort_interval, 0, 1'000'000'000, "must be an integer >= 0 steps (0: never)");
+    s.boolean("liggghts_compat", k.liggghts_compat);
+    s.check_unknown();
+  }
+  {
+    Section s(table("time"), "time", source);
+    // Above one Rayleigh time an explicit step through a dense Hertzian packing is unstable
+    // (the contact period at overlaps of ~1e-3 R is about 1-3 Rayleigh times).
+    s.number("dt_fraction", c.dt_fraction, 1e-6, 1.0, "must be in (0, 1] (fraction of the Rayleigh time; stability limit 1)");
+    s.check_unknown();
+  }
+  {
+    Section s(table("prepare"), "prepare", source);
+    PrepareConfig& p = c.prepare;
+    s.number("friction", p.friction, 0.0, 10.0, "must be in [0, 10]");
+    s.number("rolling_friction", p.rolling_friction, 0.0, 10.0, "must be in [0, 10]");
+    s.number("gain", p.gain, 0.0, 1e9, "must be >= 0 1/s (0: derived)");
+    s.positive("max_rate", p.max_rate, "1/s");
+    s.number("tolerance", p.tolerance, 1e-9, 0.5, "must be in (0, 0.5]");
+    s.number("unbalanced", p.unbalanced, 1e-12, 1.0, "must be in (0, 1]");
+    s.integer("check_interval", p.check_interval, 1, 1'000'000'000, "must be an integer >= 1 step");
+    s.integer("max_steps", p.max_steps, 1, UINT64_MAX, "must be an integer >= 1 step");
+    s.check_unknown();
+  }
+  std::vector<std::string> path_names = {"constant_p"};
+  {
+    Section s(table("shear"), "shear", source);
+    ShearConfig& h = c.shear;
+    s.positive("strain_rate", h.strain_rate, "1/s");
+    s.number("gain", h.gain, 0.0, 1e9, "must be >= 0 1/s (0: derived)");
+    s.number("max_rate", h.max_rate, 0.0, 1e9, "must be >= 0 1/s (0: 10 x strain_rate)");
+    s.integer("servo_interval", h.servo_interval, 1, 1'000'000, "must be an integer in [1, 1e6] steps");
+    s.number("max_axial_strain", h.max_axial_strain, 1e-9, 2.0, "must be in (0, 2] (logarithmic strain)");
+    s.boolean("stop_at_critical", h.stop_at_critical);
+    s.number("critical_window", h.critical_window, 1e-6, 1.0, "must be in (0, 1]");
+    s.number("critical_tolerance", h.critical_tolerance, 1e-9, 1.0, "must be in (0, 1]");
+    const std::vector<double> rates = s.numbers("strain_rates", "three finite rates in 1/s");
+    if (!rates.empty()) {
+      if (rates.size() != 3) s.fail("strain_rates", std::to_string(rates.size()) + " values", "expected 3 rates (1/s)");
+      h.strain_rates = Vec3(rates[0], rates[1], rates[2]);
+    }
+    s.integer("steps", h.steps, 0, UINT64_MAX, "must be an integer >= 0");
+    s.check_unknown();
+  }
+  {
+    Section s(table("tests"), "tests", source);
+    std::vector<double> p0 = s.numbers("p0", "each > 0 Pa");
+    std::vector<double> b = s.numbers("b", "each in [0, 1]");
+    const std::vector<std::string> paths = s.strings("path");
+    if (!paths.empty()) path_names = paths;
+    s.integer("parallel", c.parallel, 1, 1024, "must be an integer in [1, 1024]");
+    s.check_unknown();
+    if (p0.empty()) p0 = {0.5e6};
+    if (b.empty()) b = {0.0};
+    for (std::size_t k = 0; k < p0.size(); ++k)
+      if (!(p0[k] > 0.0) || !std::isfinite(p0[k])) s.fail("p0[" + std::to_string(k) + "]", num(p0[k]), "must be > 0 Pa");
+    for (std::size_t k = 0; k < b.size(); ++k)
+      if (!(b[k] >= 0.0 && b[k] <= 1.0)) s.fail("b[" + std::to_string(k) + "]", num(b[k]), "must be in [0, 1]");
+    std::vector<ShearPath> parsed;
+    for (std::size_t k = 0; k < path_names.size(); ++k) {
+      const std::string& n = path_names[k];
+      if (n == "constant_p") parsed.push_back(ShearPath::constant_p);
+      else if (n == "constant_sigma3") parsed.push_back(ShearPath::constant_sigma3);
+      else if (n == "strain") parsed.push_back(ShearPath::strain);
+      else s.fail("path[" + std::to_string(k) + "]", "\"" + n + "\"", "allowed: \"constant_p\" \"constant_sigma3\" \"strain\"");
+    }
+    for (double p : p0)
+      for (ShearPath path : parsed)
+        for (double bv : (path == ShearPath::strain ? std::vector<double>{0.0} : b)) {
+          TestSpec t;
+          t.path = path;
+          t.p0 = p;
+          t.b = bv;
+          char name[96];
+          if (path == ShearPath::strain) std::snprintf(name, sizeof name, "strain-p0_%gkPa", p / 1e3);
+          else std::snprintf(name, sizeof name, "%s-b%.2f-p0_%gkPa", path == ShearPath::constant_p ? "p" : "s3", bv, p / 1e3);
+          t.name = name;
+          bool duplicate = false;
+          for (const TestSpec& other : c.tests) duplicate = duplicate || other.name == t.name;
+          if (!duplicate) c.tests.push_back(t);
+        }
+  }
+  {
+    Section s(table("output"), "output", source);
+    OutputConfig& o = c.output;
+    s.integer("series_interval", o.series_interval, 1, 1'000'000'000, "must be an integer >= 1 step");
+    s.integer("snapshot_interval", o.snapshot_interval, 0, UINT64_MAX, "must be an integer >= 0 steps (0: stage ends only)");
+    s.integer("checkpoint_interval", o.checkpoint_interval, 0, UINT64_MAX, "must be an integer >= 0 steps (0: by time only)");
+    s.number("checkpoint_minutes", o.checkpoint_minutes, 0.0, 1e6, "must be >= 0 minutes (0: by steps only)");
+    s.integer("flush_interval", o.flush_interval, 1, 1'000'000, "must be an integer >= 1 row");
+    s.boolean("plot", o.plot);
+    s.check_unknown();
+  }
+  if (c.shear.max_rate == 0.0) c.shear.max_rate = 10.0 * c.shear.strain_rate;
+  for (const TestSpec& t : c.tests)
+    if (t.path == ShearPath::strain && c.shear.steps == 0)
+      throw ConfigError(source + ": shear.steps = 0: path \"strain\" needs a number of steps >= 1");
+  return c;
+}
+
+}  // namespace sandcell::triaxial

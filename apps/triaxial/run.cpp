@@ -1,0 +1,751 @@
+#include "run.hpp"
+
+#include "config.hpp"
+
+#include "engine/checkpoint.hpp"
+#include "engine/generate.hpp"
+#include "engine/packing.hpp"
+#include "engine/results.hpp"
+#include "engine/world.hpp"
+#include "systems/homogenizer.hpp"
+
+#include <CLI/CLI.hpp>
+
+#include <unistd.h>
+
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <mutex>
+#include <numbers>
+#include <ostream>
+#include <sstream>
+#include <thread>
+
+#ifndef SANDCELL_PLOT_SCRIPT
+#define SANDCELL_PLOT_SCRIPT ""
+#endif
+
+namespace sandcell::triaxial {
+
+namespace fs = std::filesystem;
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+std::string num(double v, const char* format = "%.6g") {
+  char buf[64];
+  std::snprintf(buf, sizeof buf, format, v);
+  return buf;
+}
+
+struct Options {
+  std::string config_path;
+  int threads = 0;
+  std::string out;
+  bool resume = false;
+  bool overwrite = false;
+  double max_axial_strain = 0.0;  // > 0: overrides shear.max_axial_strain (short runs, CI)
+  bool progress = false;
+};
+
+// Everything derived from the config before anything runs.
+struct Plan {
+  Config config;
+  Options options;
+  fs::path out;
+  Packing packing;           // from sample.file, or generated per test (same seed: same cloud)
+  bool from_file = false;
+  double r_min = 0.0, r_max = 0.0;
+  Model base;                // dt, material, contact settings of the shear stage
+  std::vector<double> p0;    // distinct preparation stresses, in config order
+  int job_threads = 1;
+};
+
+std::string p0_tag(double p0) { return "p0_" + num(p0 / 1e3, "%g") + "kPa"; }
+
+// Logs shared by parallel jobs: whole lines, one writer at a time.
+class Log {
+ public:
+  Log(std::ostream& out, bool progress) : out_(out), progress_(progress) {}
+  void line(const std::string& text) {
+    std::lock_guard lock(mutex_);
+    if (pending_) out_ << '\n';
+    pending_ = false;
+    out_ << text << '\n' << std::flush;
+  }
+  // A progress line: rewritten in place on a terminal, nothing otherwise.
+  void progress(const std::string& text, bool single_job) {
+    if (!progress_) return;
+    std::lock_guard lock(mutex_);
+    if (single_job) {
+      out_ << '\r' << text << "\x1b[K" << std::flush;
+      pending_ = true;
+    } else {
+      out_ << text << '\n' << std::flush;
+    }
+  }
+
+ private:
+  std::ostream& out_;
+  bool progress_;
+  bool pending_ = false;
+  std::mutex mutex_;
+};
+
+// The series row of DESIGN section 4, from measure().
+void append_row(ResultsFile& results, const State& state, const Measures& m, double wall) {
+  const Mat3& s = m.stress;
+  const Mat3& f = m.fabric;
+  const double stress[6] = {s(0, 0), s(1, 1), s(2, 2), s(0, 1), s(0, 2), s(1, 2)};
+  const double fabric[6] = {f(0, 0), f(1, 1), f(2, 2), f(0, 1), f(0, 2), f(1, 2)};
+  results.append("time", state.clock.time, "s");
+  results.append("step", static_cast<double>(state.clock.step), "-");
+  results.append("strain", std::span<const double>(m.strain.data(), 3), "- (logarithmic, compression positive)");
+  results.append("strain_engineering", std::span<const double>(m.strain_engineering.data(), 3), "-");
+  results.append("strain_rate", std::span<const double>(m.strain_rate.data(), 3), "1/s (compression positive)");
+  results.append("stress", std::span<const double>(stress, 6), "Pa (xx yy zz xy xz yz, compression positive)");
+  results.append("principal_stress", std::span<const double>(m.inv.principal.data(), 3), "Pa (s1 >= s2 >= s3)");
+  results.append("p", m.inv.p, "Pa");
+  results.append("q", m.inv.q, "Pa");
+  results.append("eta", m.inv.eta, "-");
+  results.append("b", m.inv.b, "-");
+  results.append("theta", m.inv.theta, "rad");
+  results.append("eps_v", m.eps_v, "-");
+  results.append("eps_q", m.eps_q, "-");
+  results.append("e", m.void_ratio, "-");
+  results.append("Z", m.z, "-");
+  results.append("Z_mech", m.z_mech, "-");
+  results.append("rattlers", static_cast<double>(m.rattlers), "-");
+  results.append("fabric", std::span<const double>(fabric, 6), "- (xx yy zz xy xz yz)");
+  results.append("kinetic_energy", m.kinetic_energy, "J");
+  results.append("unbalanced_force_ratio", m.unbalanced, "-");
+  results.append("inertial_number", m.inertial_number, "-");
+  results.append("wall_time", wall, "s");
+}
+
+// A run that has gone unstable stops here with the step, the particle and what blew up.
+void check_finite(const State& state, const Measures& m) {
+  const Particles& p = state.particles;
+  for (std::size_t k = 0; k < p.size(); ++k) {
+    const char* what = !p.position[k].allFinite()   ? "position"
+                       : !p.velocity[k].allFinite() ? "velocity"
+                       : !p.angular_velocity[k].allFinite() ? "angular velocity"
+                       : !p.force[k].allFinite()    ? "force"
+                                                    : nullptr;
+    if (what)
+      throw SimulationError("step " + std::to_string(state.clock.step) + ": particle id " + std::to_string(p.id[k]) +
+                            ": " + what + " is not finite (the run went unstable: lower time.dt_fraction or the strain rate)");
+  }
+  if (!std::isfinite(m.inv.p) || !state.cell.length.allFinite())
+    throw SimulationError("step " + std::to_string(state.clock.step) + ": cell stress or lengths are not finite");
+}
+
+// Wall time and checkpoint timing of a job.
+struct Timer {
+  Clock::time_point start = Clock::now();
+  double before = 0.0;  // s of earlier segments of a resumed job
+  Clock::time_point last_checkpoint = Clock::now();
+  double elapsed() const { return before + std::chrono::duration<double>(Clock::now() - start).count(); }
+};
+
+bool checkpoint_due(const OutputConfig& o, std::uint64_t step, Timer& timer) {
+  if (o.checkpoint_interval > 0 && step % o.checkpoint_interval == 0) return true;
+  if (o.checkpoint_minutes > 0.0 &&
+      std::chrono::duration<double>(Clock::now() - timer.last_checkpoint).count() > 60.0 * o.checkpoint_minutes)
+    return true;
+  return false;
+}
+
+void save(const fs::path& path, const State& state, CheckpointExtra extra, Timer& timer) {
+  extra.doubles["wall_time"] = {timer.elapsed()};
+  write_checkpoint(path, state, extra);
+  timer.last_checkpoint = Clock::now();
+}
+
+// ---- models -------------------------------------------------------------------------------------
+
+Model prepare_model(const Plan& plan, double p0) {
+  Model m = plan.base;
+  m.materials[0].friction = plan.config.prepare.friction;
+  m.materials[0].rolling_friction = plan.config.prepare.rolling_friction;
+  ServoSettings& s = m.servo;
+  s.enabled = true;
+  s.path = StressPath::isotropic;
+  s.control = {AxisControl::stress, AxisControl::stress, AxisControl::stress};
+  s.p = p0;
+  s.max_rate = plan.config.prepare.max_rate;
+  s.gain = plan.config.prepare.gain > 0.0 ? plan.config.prepare.gain : 10.0 * plan.config.prepare.max_rate;
+  s.interval = 1;
+  return m;
+}
+
+Model shear_model(const Plan& plan, const TestSpec& test) {
+  Model m = plan.base;
+  const ShearConfig& h = plan.config.shear;
+  ServoSettings& s = m.servo;
+  if (test.path == ShearPath::strain) return m;  // rates set once on the cell; no servo scheduled
+  s.enabled = true;
+  s.path = test.path == ShearPath::constant_p ? StressPath::constant_p_b : StressPath::constant_sigma3_b;
+  s.control = {AxisControl::strain, AxisControl::stress, AxisControl::stress};
+  s.strain_rate = Vec3(h.strain_rate, 0.0, 0.0);
+  s.p = test.p0;
+  s.sigma3 = test.p0;
+  s.b = test.b;
+  s.max_rate = h.max_rate;
+  s.gain = h.gain > 0.0 ? h.gain : 300.0 * h.strain_rate;
+  s.interval = h.servo_interval;
+  return m;
+}
+
+// ---- jobs ---------------------------------------------------------------------------------------
+
+struct Summary {
+  std::string name;
+  std::string status = "not run";
+  double e0 = 0.0, z0 = 0.0, peak_eta = 0.0, peak_strain = 0.0, final_eta = 0.0, final_e = 0.0, final_p = 0.0;
+  double final_strain = 0.0;
+  std::uint64_t steps = 0;
+  double wall = 0.0;
+  bool critical = false;
+};
+
+class Runner {
+ public:
+  Runner(const Plan& plan, Log& log) : plan_(plan), log_(log) {}
+
+  fs::path sample_path(double p0) const { return plan_.out / ("sample-" + p0_tag(p0) + ".h5"); }
+
+  // Prepares the sample for p0 (or finds it prepared). Returns false on failure.
+  bool prepare(double p0, Summary& summary);
+  void shear(const TestSpec& test, Summary& summary);
+
+ private:
+  Executor exec() const { return Executor(ExecutorConfig{Backend::tbb, plan_.job_threads}); }
+  const Plan& plan_;
+  Log& log_;
+  bool single_job() const { return plan_.config.parallel == 1; }
+};
+
+bool Runner::prepare(double p0, Summary& summary) {
+  const std::string tag = p0_tag(p0);
+  summary.name = "prepare-" + tag;
+  const fs::path sample = sample_path(p0);
+  const fs::path ckpt = plan_.out / ("prepare-" + tag + ".checkpoint.h5");
+  const fs::path series = plan_.out / ("prepare-" + tag + ".h5");
+  if (fs::exists(sample)) {  // only reachable with --resume: a finished preparation
+    CheckpointExtra extra;
+    read_checkpoint(sample, &extra);
+    summary.e0 = extra.doubles["e0"].at(0);
+    summary.z0 = extra.doubles["Z"].at(0);
+    summary.status = "done (earlier run)";
+    return true;
+  }
+  const Model model = prepare_model(plan_, p0);
+  const PrepareConfig& pc = plan_.config.prepare;
+  Timer timer;
+  State state;
+  std::optional<ResultsFile> results;
+  bool resumed = false;
+  if (plan_.options.resume && fs::exists(ckpt)) {
+    CheckpointExtra extra;
+    state = read_checkpoint(ckpt, &extra);
+    timer.before = extra.doubles["wall_time"].at(0);
+    results.emplace(ResultsFile::reopen(series, state.clock.step));
+    resumed = true;
+    log_.line(summary.name + ": resumed at step " + std::to_string(state.clock.step));
+  } else {
+    Packing packing = plan_.packing;
+    if (!plan_.from_file) packing = generate_packing(plan_.config.sample.generation);
+    state = make_state(model, packing);
+    results.emplace(ResultsFile::create(series, plan_.config.text, {{"job", summary.name}, {"stage", "prepare"}}));
+  }
+  Executor ex = exec();
+  World world(model, std::move(state), ExecutorConfig{Backend::tbb, plan_.job_threads}, !resumed);
+  (void)ex;
+  MeasureOptions mo;
+  mo.d50 = median_diameter(world.state().particles);
+  mo.density = plan_.config.material.density;
+  log_.line(summary.name + ": isotropic compression to " + num(p0 / 1e6) + " MPa, " +
+            std::to_string(world.state().particles.size()) + " spheres, dt = " + num(model.dt) + " s, " +
+            std::to_string(plan_.job_threads) + " threads");
+  std::uint64_t rows = 0;
+  const auto row = [&](const Measures& m) {
+    append_row(*results, world.state(), m, timer.elapsed());
+    if (++rows % plan_.config.output.flush_interval == 0) results->flush();
+  };
+  if (!resumed) row(measure(world.model(), world.state(), world.executor(), mo));
+  const auto t0 = Clock::now();
+  const std::uint64_t step0 = world.state().clock.step;
+  Measures m;
+  for (;;) {
+    world.step(1);
+    const std::uint64_t s = world.state().clock.step;
+    const bool series_due = s % plan_.config.output.series_interval == 0;
+    const bool check = s % pc.check_interval == 0;
+    if (series_due || check) {
+      m = measure(world.model(), world.state(), world.executor(), mo);
+      check_finite(world.state(), m);
+      if (series_due) row(m);
+      if (check) {
+        double worst = 0.0;
+        for (int k = 0; k < 3; ++k) worst = std::max(worst, std::abs(m.stress(k, k) - p0) / p0);
+        const double rate = double(s - step0) / std::chrono::duration<double>(Clock::now() - t0).count();
+        log_.progress(summary.name + " step " + std::to_string(s) + "  p " + num(m.inv.p / 1e6, "%.4f") + " MPa  e " +
+                          num(m.void_ratio, "%.4f") + "  stress error " + num(100 * worst, "%.2f") + " %  unbalanced " +
+                          num(m.unbalanced, "%.2e") + "  " + num(rate, "%.0f") + " steps/s",
+                      single_job());
+        if (worst < pc.tolerance && m.unbalanced < pc.unbalanced) break;
+        if (s >= pc.max_steps)
+          throw SimulationError(summary.name + ": not converged after prepare.max_steps = " + std::to_string(pc.max_steps) +
+                                " steps: worst axis stress error " + num(100 * worst) + " % (tolerance " +
+                                num(100 * pc.tolerance) + " %), unbalanced force ratio " + num(m.unbalanced) +
+                                " (tolerance " + num(pc.unbalanced) + ")");
+      }
+    }
+    if (checkpoint_due(plan_.config.output, s, timer)) {
+      results->flush();
+      save(ckpt, world.state(), {}, timer);
+    }
+  }
+  State& st = world.state();
+  st.cell.length0 = st.cell.length;  // strains of the tests count from the prepared sample
+  results->write_snapshot(st);
+  results->close();
+  CheckpointExtra extra;
+  extra.doubles["p0"] = {p0};
+  extra.doubles["e0"] = {m.void_ratio};
+  extra.doubles["Z"] = {m.z};
+  extra.doubles["Z_mech"] = {m.z_mech};
+  extra.doubles["unbalanced"] = {m.unbalanced};
+  extra.strings["config"] = plan_.config.text;
+  save(sample, st, extra, timer);
+  std::error_code ignore;
+  fs::remove(ckpt, ignore);
+  summary.e0 = m.void_ratio;
+  summary.z0 = m.z;
+  summary.steps = st.clock.step;
+  summary.wall = timer.elapsed();
+  summary.status = "done";
+  log_.line(summary.name + ": done at step " + std::to_string(st.clock.step) + ": e0 = " + num(m.void_ratio, "%.4f") +
+            ", Z = " + num(m.z, "%.3f") + ", Z_mech = " + num(m.z_mech, "%.3f") + ", p = " + num(m.inv.p / 1e6, "%.4f") +
+            " MPa, unbalanced " + num(m.unbalanced, "%.2e") + ", wall " + num(summary.wall, "%.1f") + " s");
+  return true;
+}
+
+// Critical state (q, p and e stationary over the last `window` of axial strain) and the peak.
+struct History {
+  std::vector<double> eps1, p, q, e;
+  bool critical(double window, double tolerance) const {
+    const std::size_t n = eps1.size();
+    if (n < 3 || eps1.back() < 2.0 * window) return false;
+    std::size_t first = n - 1;
+    while (first > 0 && eps1[first - 1] >= eps1.back() - window) --first;
+    if (first == 0 || n - first < 3) return false;
+    const auto spread = [&](const std::vector<double>& v, bool relative) {
+      const auto [lo, hi] = std::minmax_element(v.begin() + first, v.end());
+      const double scale = relative ? std::abs(v.back()) : 1.0;
+      return scale > 0.0 ? (*hi - *lo) / scale : HUGE_VAL;
+    };
+    return spread(q, true) < tolerance && spread(p, true) < tolerance && spread(e, false) < tolerance;
+  }
+  CheckpointExtra save() const {
+    CheckpointExtra x;
+    x.doubles = {{"history_eps1", eps1}, {"history_p", p}, {"history_q", q}, {"history_e", e}};
+    return x;
+  }
+  void load(CheckpointExtra& x) {
+    eps1 = x.doubles["history_eps1"];
+    p = x.doubles["history_p"];
+    q = x.doubles["history_q"];
+    e = x.doubles["history_e"];
+  }
+};
+
+void Runner::shear(const TestSpec& test, Summary& summary) {
+  summary.name = test.name;
+  const fs::path ckpt = plan_.out / (test.name + ".checkpoint.h5");
+  const fs::path path = plan_.out / (test.name + ".h5");
+  const ShearConfig& h = plan_.config.shear;
+  const double max_strain = plan_.options.max_axial_strain > 0.0 ? plan_.options.max_axial_strain : h.max_axial_strain;
+  Model model = shear_model(plan_, test);
+  Timer timer;
+  History history;
+  State state;
+  std::optional<ResultsFile> results;
+  bool resumed = false;
+  CheckpointExtra sample_extra;
+  read_checkpoint(sample_path(test.p0), &sample_extra);
+  summary.e0 = sample_extra.doubles["e0"].at(0);
+  summary.z0 = sample_extra.doubles["Z"].at(0);
+  if (plan_.options.resume && fs::exists(ckpt)) {
+    CheckpointExtra extra;
+    state = read_checkpoint(ckpt, &extra);
+    timer.before = extra.doubles["wall_time"].at(0);
+    if (extra.integers.count("complete") && extra.integers["complete"].at(0) == 1) {
+      summary.status = "done (earlier run)";
+      history.load(extra);
+      summary.steps = state.clock.step;
+      summary.wall = timer.before;
+      if (!history.eps1.empty()) {
+        const auto peak = std::max_element(history.q.begin(), history.q.end()) - history.q.begin();
+        summary.peak_eta = history.q[peak] / history.p[peak];
+        summary.peak_strain = history.eps1[peak];
+        summary.final_eta = history.q.back() / history.p.back();
+        summary.final_e = history.e.back();
+        summary.final_p = history.p.back();
+        summary.final_strain = history.eps1.back();
+      }
+      return;
+    }
+    history.load(extra);
+    results.emplace(ResultsFile::reopen(path, state.clock.step));
+    resumed = true;
+    log_.line(test.name + ": resumed at step " + std::to_string(state.clock.step));
+  } else {
+    state = read_checkpoint(sample_path(test.p0), nullptr);
+    state.clock = {};
+    state.cell.length0 = state.cell.length;
+    if (test.path == ShearPath::strain) state.cell.rate = -h.strain_rates;
+    else state.cell.rate = Vec3(-h.strain_rate, 0.0, 0.0);
+    results.emplace(ResultsFile::create(path, plan_.config.text,
+                                        {{"job", test.name}, {"stage", "shear"}, {"path", path_name(test.path)},
+                                         {"b", num(test.b)}, {"p0", num(test.p0)}}));
+  }
+  World world(model, std::move(state), ExecutorConfig{Backend::tbb, plan_.job_threads}, false);
+  MeasureOptions mo;
+  mo.d50 = median_diameter(world.state().particles);
+  mo.density = plan_.config.material.density;
+  log_.line(test.name + ": " + path_name(test.path) + (test.path == ShearPath::strain ? "" : ", b = " + num(test.b)) +
+            ", p0 = " + num(test.p0 / 1e6) + " MPa, e0 = " + num(summary.e0, "%.4f") + ", to axial strain " +
+            num(max_strain) + ", " + std::to_string(plan_.job_threads) + " threads");
+  std::uint64_t rows = 0;
+  Measures m;
+  const auto row = [&]() {
+    m = measure(world.model(), world.state(), world.executor(), mo);
+    check_finite(world.state(), m);
+    append_row(*results, world.state(), m, timer.elapsed());
+    history.eps1.push_back(m.strain[0]);
+    history.p.push_back(m.inv.p);
+    history.q.push_back(m.inv.q);
+    history.e.push_back(m.void_ratio);
+    if (++rows % plan_.config.output.flush_interval == 0) results->flush();
+  };
+  if (!resumed) {
+    row();
+    results->write_snapshot(world.state());
+  }
+  const auto t0 = Clock::now();
+  const std::uint64_t step0 = world.state().clock.step;
+  const OutputConfig& o = plan_.config.output;
+  const double rate = test.path == ShearPath::strain ? 0.0 : h.strain_rate;
+  auto last_progress = Clock::now();
+  for (;;) {
+    world.step(1);
+    State& st = world.state();
+    const std::uint64_t s = st.clock.step;
+    const double eps1 = -std::log(st.cell.length[0] / st.cell.length0[0]);
+    const bool done = test.path == ShearPath::strain ? s >= h.steps : eps1 >= max_strain;
+    if (s % o.series_interval == 0 || done) {
+      row();
+      if (h.stop_at_critical && history.critical(h.critical_window, h.critical_tolerance)) summary.critical = true;
+    }
+    if (o.snapshot_interval > 0 && s % o.snapshot_interval == 0) results->write_snapshot(st);
+    if (done || summary.critical) break;
+    if (checkpoint_due(o, s, timer)) {
+      results->flush();
+      save(ckpt, st, history.save(), timer);
+    }
+    if (plan_.options.progress && std::chrono::duration<double>(Clock::now() - last_progress).count() > 1.0) {
+      last_progress = Clock::now();
+      const double speed = double(s - step0) / std::chrono::duration<double>(Clock::now() - t0).count();
+      const double left = rate > 0.0 ? (max_strain - eps1) / (rate * world.model().dt) / speed
+                                     : double(h.steps - s) / speed;
+      log_.progress(test.name + " step " + std::to_string(s) + "  eps1 " + num(100 * eps1, "%.2f") + " %  p " +
+                        num(m.inv.p / 1e6, "%.4f") + " MPa  q " + num(m.inv.q / 1e6, "%.4f") + " MPa  e " +
+                        num(m.void_ratio, "%.4f") + "  " + num(speed, "%.0f") + " steps/s  ETA " + num(left, "%.0f") + " s",
+                    single_job());
+    }
+  }
+  State& st = world.state();
+  if (o.snapshot_interval == 0 || st.clock.step % o.snapshot_interval != 0) results->write_snapshot(st);
+  results->close();
+  CheckpointExtra extra = history.save();
+  extra.integers["complete"] = {1};
+  save(ckpt, st, extra, timer);
+
+  const auto peak = std::max_element(history.q.begin(), history.q.end()) - history.q.begin();
+  summary.peak_eta = history.q[peak] / history.p[peak];
+  summary.peak_strain = history.eps1[peak];
+  summary.final_eta = m.inv.eta;
+  summary.final_e = m.void_ratio;
+  summary.final_p = m.inv.p;
+  summary.final_strain = m.strain[0];
+  summary.steps = st.clock.step;
+  summary.wall = timer.elapsed();
+  summary.status = summary.critical ? "done (critical state)" : "done";
+  log_.line(test.name + ": done at step " + std::to_string(st.clock.step) + ", eps1 = " + num(100 * m.strain[0], "%.2f") +
+            " %: peak q/p = " + num(summary.peak_eta, "%.4f") + " at eps1 = " + num(100 * summary.peak_strain, "%.2f") +
+            " %, final q/p = " + num(m.inv.eta, "%.4f") + ", p = " + num(m.inv.p / 1e6, "%.4f") + " MPa, b = " +
+            num(m.inv.b, "%.3f") + ", e = " + num(m.void_ratio, "%.4f") + ", wall " + num(summary.wall, "%.1f") + " s");
+
+  if (plan_.config.output.plot) {
+    // The plot is a convenience: a missing python3/matplotlib is a warning, not a failure.
+    std::string script = SANDCELL_PLOT_SCRIPT;
+    const char* python = std::getenv("SANDCELL_PYTHON");
+    std::string py = python ? python : (fs::exists("/usr/bin/python3") ? "/usr/bin/python3" : "python3");
+    const fs::path png = plan_.out / (test.name + ".png");
+    if (!script.empty() && fs::exists(script)) {
+      const std::string cmd = "'" + py + "' '" + script + "' '" + path.string() + "' '" + png.string() + "' 2>&1";
+      if (std::system(cmd.c_str()) == 0) log_.line(test.name + ": plot " + png.string());
+      else log_.line(test.name + ": warning: no plot (needs python3 with h5py and matplotlib: " + cmd + ")");
+    }
+  }
+}
+
+// ---- planning -----------------------------------------------------------------------------------
+
+Plan make_plan(Config config_in, const Options& options) {
+  Plan plan;
+  plan.options = options;
+  plan.config = std::move(config_in);
+  const Config& config = plan.config;
+  const std::string& src = config.source;
+  const SampleConfig& sc = config.sample;
+  std::vector<double> diameters;
+  if (!sc.packing_file.empty()) {
+    try {
+      plan.packing = read_packing(sc.packing_file);
+    } catch (const std::exception& e) {
+      throw ConfigError(src + ": sample.file = \"" + sc.packing_file + "\": " + e.what());
+    }
+    if (plan.packing.position.size() < 2) throw ConfigError(src + ": sample.file = \"" + sc.packing_file + "\": needs at least 2 spheres");
+    plan.from_file = true;
+    for (double r : plan.packing.radius) diameters.push_back(2.0 * r);
+  } else {
+    diameters = sample_diameters(sc.generation.sizes, sc.generation.count, sc.generation.seed);
+  }
+  plan.r_min = 0.5 * *std::min_element(diameters.begin(), diameters.end());
+  plan.r_max = 0.5 * *std::max_element(diameters.begin(), diameters.end());
+  double solid = 0.0;
+  for (double d : diameters) solid += std::numbers::pi / 6.0 * d * d * d;
+
+  Model& m = plan.base;
+  m.materials = {config.material};
+  m.contact = config.contact;
+  if (m.contact.skin == 0.0) m.contact.skin = 0.2 * plan.r_min;  // 0.1 x the smallest diameter
+  m.dt = config.dt_fraction * rayleigh_time(plan.r_min, config.material);
+
+  // The cell must stay wider than 2 r_max + skin through the test: at a dense random packing
+  // (solid fraction <= 0.64) after preparation, then shortened by the axial strain.
+  const double max_strain = options.max_axial_strain > 0.0 ? options.max_axial_strain : config.shear.max_axial_strain;
+  const double side = std::cbrt(solid / 0.64);
+  double narrowest = side;
+  for (const TestSpec& t : config.tests) {
+    if (t.path == ShearPath::strain) {
+      const Vec3 r = config.shear.strain_rates;
+      narrowest = std::min(narrowest, side * std::exp(-r.maxCoeff() * m.dt * double(config.shear.steps)));
+    } else {
+      narrowest = std::min(narrowest, side * std::exp(-max_strain));
+    }
+  }
+  const double cutoff = 2.0 * plan.r_max + m.contact.skin;
+  if (!(narrowest > cutoff)) {
+    const double needed = static_cast<double>(diameters.size()) * std::pow(cutoff / narrowest, 3.0);
+    throw ConfigError(src + ": sample.count = " + std::to_string(diameters.size()) + ": the cell would narrow to " +
+                      num(narrowest) + " m (dense sample, then the axial strain), not wider than 2 r_max + skin = " +
+                      num(cutoff) + " m; allowed: more than " + num(std::ceil(needed), "%.0f") +
+                      " spheres, or a smaller shear.max_axial_strain");
+  }
+  for (const TestSpec& t : config.tests)
+    if (std::find(plan.p0.begin(), plan.p0.end(), t.p0) == plan.p0.end()) plan.p0.push_back(t.p0);
+  // Servo settings are checked here, before anything is written.
+  try {
+    validate(prepare_model(plan, plan.p0.front()).servo);
+    for (const TestSpec& t : config.tests) {
+      const Model sm = shear_model(plan, t);
+      if (sm.servo.enabled) validate(sm.servo);
+    }
+  } catch (const std::invalid_argument& e) {
+    throw ConfigError(src + ": " + e.what());
+  }
+  const int total = options.threads > 0 ? options.threads : std::max(1, static_cast<int>(std::thread::hardware_concurrency()));
+  plan.job_threads = std::max(1, total / std::max(1, config.parallel));
+  return plan;
+}
+
+// The files a run writes into the output directory.
+std::vector<fs::path> run_files(const Plan& plan) {
+  std::vector<fs::path> files{plan.out / "index.csv"};
+  for (double p0 : plan.p0) {
+    const std::string tag = p0_tag(p0);
+    for (const char* f : {"sample-", "prepare-"}) files.push_back(plan.out / (f + tag + ".h5"));
+    files.push_back(plan.out / ("prepare-" + tag + ".xdmf"));
+    files.push_back(plan.out / ("prepare-" + tag + ".checkpoint.h5"));
+  }
+  for (const TestSpec& t : plan.config.tests)
+    for (const char* ext : {".h5", ".xdmf", ".checkpoint.h5", ".png"}) files.push_back(plan.out / (t.name + ext));
+  return files;
+}
+
+void write_index(const Plan& plan, const std::vector<Summary>& prep, const std::vector<Summary>& tests) {
+  const fs::path path = plan.out / "index.csv";
+  const fs::path tmp = plan.out / "index.csv.tmp";
+  {
+    std::ofstream out(tmp);
+    out << "test,path,b,p0_Pa,file,status,e0,Z0,peak_eta,eps1_at_peak,final_eta,final_p_Pa,final_e,final_eps1,steps,wall_s\n";
+    for (std::size_t k = 0; k < tests.size(); ++k) {
+      const TestSpec& t = plan.config.tests[k];
+      const Summary& s = tests[k];
+      out << t.name << ',' << path_name(t.path) << ',' << num(t.b) << ',' << num(t.p0) << ',' << t.name << ".h5,"
+          << s.status << ',' << num(s.e0) << ',' << num(s.z0) << ',' << num(s.peak_eta) << ',' << num(s.peak_strain) << ','
+          << num(s.final_eta) << ',' << num(s.final_p) << ',' << num(s.final_e) << ',' << num(s.final_strain) << ','
+          << s.steps << ',' << num(s.wall) << '\n';
+    }
+    (void)prep;
+  }
+  fs::rename(tmp, path);
+}
+
+// Runs fn(k) for k in [0, n) on `workers` threads.
+template <class Fn>
+void run_parallel(std::size_t n, int workers, Fn&& fn) {
+  std::atomic<std::size_t> next{0};
+  const auto work = [&] {
+    for (std::size_t k; (k = next.fetch_add(1)) < n;) fn(k);
+  };
+  std::vector<std::thread> pool;
+  for (int w = 1; w < std::min<int>(workers, static_cast<int>(n)); ++w) pool.emplace_back(work);
+  work();
+  for (std::thread& t : pool) t.join();
+}
+
+}  // namespace
+
+int triaxial_main(int argc, const char* const* argv, std::ostream& out, std::ostream& err) {
+  Options options;
+  bool print_default = false;
+  CLI::App app{"sandcell triaxial: true triaxial DEM tests in a stress-controlled periodic cell"};
+  app.add_option("config", options.config_path, "TOML configuration (none: the embedded default)");
+  app.add_option("--threads", options.threads, "worker threads in all (default: all cores)")->check(CLI::Range(1, 1024));
+  app.add_option("--out", options.out, "output directory (default: results/<config name>)");
+  app.add_flag("--resume", options.resume, "continue a killed run from its checkpoints");
+  app.add_flag("--overwrite", options.overwrite, "replace the results of an earlier run in the output directory");
+  app.add_option("--max-axial-strain", options.max_axial_strain, "override shear.max_axial_strain (short runs)")
+      ->check(CLI::Range(1e-9, 2.0));
+  app.add_flag("--print-default", print_default, "print the embedded default configuration and exit");
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::CallForHelp& e) {
+    out << app.help();
+    return 0;
+  } catch (const CLI::ParseError& e) {
+    err << "triaxial: " << e.what() << " (see --help)\n";
+    return 2;
+  }
+  if (print_default) {
+    out << k_default_config;
+    return 0;
+  }
+  if (options.resume && options.overwrite) {
+    err << "triaxial: --resume and --overwrite exclude each other\n";
+    return 2;
+  }
+  options.progress = ::isatty(STDOUT_FILENO) && &out == &std::cout;
+
+  Plan plan;
+  try {
+    std::string text, source = "<embedded default>";
+    if (options.config_path.empty()) {
+      text = k_default_config;
+    } else {
+      std::ifstream in(options.config_path);
+      if (!in) throw ConfigError(options.config_path + ": cannot read the configuration file");
+      std::ostringstream buffer;
+      buffer << in.rdbuf();
+      text = buffer.str();
+      source = options.config_path;
+    }
+    plan = make_plan(parse_config(text, source), options);
+  } catch (const ConfigError& e) {
+    err << "triaxial: " << e.what() << '\n';
+    return 2;
+  }
+  plan.out = !options.out.empty() ? fs::path(options.out)
+             : options.config_path.empty() ? fs::path("results/default")
+                                           : fs::path("results") / fs::path(options.config_path).stem();
+
+  // Nothing of an earlier run is replaced unless asked.
+  const std::vector<fs::path> files = run_files(plan);
+  if (!options.resume) {
+    std::vector<fs::path> existing;
+    for (const fs::path& f : files)
+      if (fs::exists(f)) existing.push_back(f);
+    if (!existing.empty() && !options.overwrite) {
+      err << "triaxial: --out = " << plan.out.string() << ": holds the results of an earlier run (" << existing.front().string()
+          << (existing.size() > 1 ? " and " + std::to_string(existing.size() - 1) + " more" : "")
+          << "); allowed: --resume to continue it, --overwrite to replace it, or another --out\n";
+      return 2;
+    }
+  }
+  std::error_code ec;
+  fs::create_directories(plan.out, ec);
+  if (ec) {
+    err << "triaxial: --out = " << plan.out.string() << ": cannot create the directory: " << ec.message() << '\n';
+    return 2;
+  }
+  if (options.overwrite)
+    for (const fs::path& f : files) fs::remove(f, ec);
+
+  Log log(out, options.progress);
+  log.line("sandcell triaxial: " + plan.config.source + " -> " + plan.out.string() + ": " +
+           std::to_string(plan.config.tests.size()) + " test(s), " + std::to_string(plan.p0.size()) + " sample(s), " +
+           std::to_string(plan.config.parallel) + " at once x " + std::to_string(plan.job_threads) + " thread(s)");
+  Runner runner(plan, log);
+  std::vector<Summary> prep(plan.p0.size()), tests(plan.config.tests.size());
+  std::vector<char> prepared(plan.p0.size(), 0);
+  int failures = 0;
+  std::mutex failure_mutex;
+  const auto failed = [&](const std::string& what, const std::exception& e) {
+    std::lock_guard lock(failure_mutex);
+    ++failures;
+    log.line("triaxial: " + what + ": " + e.what());
+  };
+  run_parallel(plan.p0.size(), plan.config.parallel, [&](std::size_t k) {
+    try {
+      prepared[k] = runner.prepare(plan.p0[k], prep[k]);
+    } catch (const std::exception& e) {
+      prep[k].status = "failed";
+      failed(prep[k].name.empty() ? "prepare-" + p0_tag(plan.p0[k]) : prep[k].name, e);
+    }
+  });
+  run_parallel(plan.config.tests.size(), plan.config.parallel, [&](std::size_t k) {
+    const TestSpec& t = plan.config.tests[k];
+    const std::size_t sample = std::find(plan.p0.begin(), plan.p0.end(), t.p0) - plan.p0.begin();
+    tests[k].name = t.name;
+    if (!prepared[sample]) {
+      tests[k].status = "skipped (sample failed)";
+      return;
+    }
+    try {
+      runner.shear(t, tests[k]);
+    } catch (const std::exception& e) {
+      tests[k].status = "failed";
+      failed(t.name, e);
+    }
+  });
+  try {
+    write_index(plan, prep, tests);
+  } catch (const std::exception& e) {
+    failed("index.csv", e);
+  }
+  log.line("results: " + (plan.out / "index.csv").string() + (failures ? " (" + std::to_string(failures) + " failed)" : ""));
+  return failures ? 1 : 0;
+}
+
+}  // namespace sandcell::triaxial
