@@ -52,6 +52,13 @@ struct Options {
   bool overwrite = false;
   double max_axial_strain = 0.0;  // > 0: overrides shear.max_axial_strain (short runs, CI)
   bool progress = false;
+  std::uint64_t stop_after = 0;   // > 0: each job stops after this many steps of this process, with a
+                                  // checkpoint, as a killed run would (to test --resume)
+};
+
+// A job stopped on request (--stop-after) after writing its checkpoint.
+struct Interrupted : std::runtime_error {
+  using std::runtime_error::runtime_error;
 };
 
 // Everything derived from the config before anything runs.
@@ -170,6 +177,19 @@ void save(const fs::path& path, const State& state, CheckpointExtra extra, Timer
 
 // ---- models -------------------------------------------------------------------------------------
 
+// Servo gain derived from the physics when the config leaves it 0. A strain increment changes the
+// stress through the packing's stiffness K ~ p (E*/p)^(2/3) (Hertzian contacts), so one servo step
+// changes the normalized error by about g dt (E*/p)^(2/3); the stress settles over some tens of
+// steps after a strain increment, so that loop gain per step must stay well below 1/30.
+// g = alpha (p/E*)^(2/3) / dt keeps it at alpha; alpha = 0.05 (preparation, from rest through
+// jamming) and 0.25 (shearing, tracking a moving target) were found stable on the default sample
+// (2000 spheres, E = 70 GPa, 0.5 MPa) and on a soft one (300 spheres, E = 1 GPa, 0.1 MPa).
+double derived_gain(double alpha, double p, const Model& m) {
+  const Material& mat = m.materials[0];
+  const double e_star = mat.young / (2.0 * (1.0 - mat.poisson * mat.poisson));
+  return alpha * std::pow(p / e_star, 2.0 / 3.0) / m.dt;
+}
+
 Model prepare_model(const Plan& plan, double p0) {
   Model m = plan.base;
   m.materials[0].friction = plan.config.prepare.friction;
@@ -180,7 +200,7 @@ Model prepare_model(const Plan& plan, double p0) {
   s.control = {AxisControl::stress, AxisControl::stress, AxisControl::stress};
   s.p = p0;
   s.max_rate = plan.config.prepare.max_rate;
-  s.gain = plan.config.prepare.gain > 0.0 ? plan.config.prepare.gain : 10.0 * plan.config.prepare.max_rate;
+  s.gain = plan.config.prepare.gain > 0.0 ? plan.config.prepare.gain : derived_gain(0.05, p0, m);
   s.interval = 1;
   return m;
 }
@@ -198,7 +218,7 @@ Model shear_model(const Plan& plan, const TestSpec& test) {
   s.sigma3 = test.p0;
   s.b = test.b;
   s.max_rate = h.max_rate;
-  s.gain = h.gain > 0.0 ? h.gain : 300.0 * h.strain_rate;
+  s.gain = h.gain > 0.0 ? h.gain : derived_gain(0.25, test.p0, m);
   s.interval = h.servo_interval;
   return m;
 }
@@ -272,7 +292,8 @@ bool Runner::prepare(double p0, Summary& summary) {
   mo.d50 = median_diameter(world.state().particles);
   mo.density = plan_.config.material.density;
   log_.line(summary.name + ": isotropic compression to " + num(p0 / 1e6) + " MPa, " +
-            std::to_string(world.state().particles.size()) + " spheres, dt = " + num(model.dt) + " s, " +
+            std::to_string(world.state().particles.size()) + " spheres, dt = " + num(model.dt) + " s, servo gain " +
+            num(model.servo.gain, "%.4g") + " 1/s, " +
             std::to_string(plan_.job_threads) + " threads");
   std::uint64_t rows = 0;
   const auto row = [&](const Measures& m) {
@@ -311,6 +332,11 @@ bool Runner::prepare(double p0, Summary& summary) {
     if (checkpoint_due(plan_.config.output, s, timer)) {
       results->flush();
       save(ckpt, world.state(), {}, timer);
+    }
+    if (plan_.options.stop_after > 0 && s - step0 >= plan_.options.stop_after) {
+      results->flush();
+      save(ckpt, world.state(), {}, timer);
+      throw Interrupted(summary.name + ": stopped at step " + std::to_string(s) + " (--stop-after)");
     }
   }
   State& st = world.state();
@@ -423,7 +449,8 @@ void Runner::shear(const TestSpec& test, Summary& summary) {
   mo.density = plan_.config.material.density;
   log_.line(test.name + ": " + path_name(test.path) + (test.path == ShearPath::strain ? "" : ", b = " + num(test.b)) +
             ", p0 = " + num(test.p0 / 1e6) + " MPa, e0 = " + num(summary.e0, "%.4f") + ", to axial strain " +
-            num(max_strain) + ", " + std::to_string(plan_.job_threads) + " threads");
+            num(max_strain) + ", servo gain " + num(model.servo.gain, "%.4g") + " 1/s, " +
+            std::to_string(plan_.job_threads) + " threads");
   std::uint64_t rows = 0;
   Measures m;
   const auto row = [&]() {
@@ -460,6 +487,11 @@ void Runner::shear(const TestSpec& test, Summary& summary) {
     if (checkpoint_due(o, s, timer)) {
       results->flush();
       save(ckpt, st, history.save(), timer);
+    }
+    if (plan_.options.stop_after > 0 && s - step0 >= plan_.options.stop_after) {
+      results->flush();
+      save(ckpt, st, history.save(), timer);
+      throw Interrupted(test.name + ": stopped at step " + std::to_string(s) + " (--stop-after)");
     }
     if (plan_.options.progress && std::chrono::duration<double>(Clock::now() - last_progress).count() > 1.0) {
       last_progress = Clock::now();
@@ -639,6 +671,8 @@ int triaxial_main(int argc, const char* const* argv, std::ostream& out, std::ost
   app.add_option("--max-axial-strain", options.max_axial_strain, "override shear.max_axial_strain (short runs)")
       ->check(CLI::Range(1e-9, 2.0));
   app.add_flag("--print-default", print_default, "print the embedded default configuration and exit");
+  app.add_option("--stop-after", options.stop_after,
+                 "stop every job after N steps with a checkpoint, as if killed (to test --resume)");
   try {
     app.parse(argc, argv);
   } catch (const CLI::CallForHelp& e) {
@@ -709,10 +743,15 @@ int triaxial_main(int argc, const char* const* argv, std::ostream& out, std::ost
   Runner runner(plan, log);
   std::vector<Summary> prep(plan.p0.size()), tests(plan.config.tests.size());
   std::vector<char> prepared(plan.p0.size(), 0);
-  int failures = 0;
+  int failures = 0, interrupted = 0;
   std::mutex failure_mutex;
   const auto failed = [&](const std::string& what, const std::exception& e) {
     std::lock_guard lock(failure_mutex);
+    if (dynamic_cast<const Interrupted*>(&e)) {
+      ++interrupted;
+      log.line(std::string(e.what()) + "; continue with --resume");
+      return;
+    }
     ++failures;
     log.line("triaxial: " + what + ": " + e.what());
   };
@@ -720,7 +759,7 @@ int triaxial_main(int argc, const char* const* argv, std::ostream& out, std::ost
     try {
       prepared[k] = runner.prepare(plan.p0[k], prep[k]);
     } catch (const std::exception& e) {
-      prep[k].status = "failed";
+      prep[k].status = dynamic_cast<const Interrupted*>(&e) ? "interrupted" : "failed";
       failed(prep[k].name.empty() ? "prepare-" + p0_tag(plan.p0[k]) : prep[k].name, e);
     }
   });
@@ -735,7 +774,7 @@ int triaxial_main(int argc, const char* const* argv, std::ostream& out, std::ost
     try {
       runner.shear(t, tests[k]);
     } catch (const std::exception& e) {
-      tests[k].status = "failed";
+      tests[k].status = dynamic_cast<const Interrupted*>(&e) ? "interrupted" : "failed";
       failed(t.name, e);
     }
   });
@@ -745,7 +784,7 @@ int triaxial_main(int argc, const char* const* argv, std::ostream& out, std::ost
     failed("index.csv", e);
   }
   log.line("results: " + (plan.out / "index.csv").string() + (failures ? " (" + std::to_string(failures) + " failed)" : ""));
-  return failures ? 1 : 0;
+  return failures ? 1 : interrupted ? 3 : 0;
 }
 
 }  // namespace sandcell::triaxial

@@ -1,0 +1,233 @@
+// The triaxial app, run in-process: bad input (one case per class of mistake) exits 2 with one line
+// naming the key and leaves the output directory untouched; a run stopped and resumed (with other
+// thread counts) is bitwise identical to an uninterrupted one; the embedded default runs end to end
+// and its results file holds the documented datasets.
+#include "engine/checkpoint.hpp"
+#include "run.hpp"
+
+#include <doctest/doctest.h>
+#include <hdf5.h>
+
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <string>
+#include <vector>
+
+using namespace sandcell;
+namespace fs = std::filesystem;
+
+namespace {
+
+struct Result {
+  int code = 0;
+  std::string out, err;
+};
+
+Result run(std::vector<std::string> args) {
+  args.insert(args.begin(), "triaxial");
+  std::vector<const char*> argv;
+  for (const std::string& a : args) argv.push_back(a.c_str());
+  std::ostringstream out, err;
+  Result r;
+  r.code = triaxial::triaxial_main(static_cast<int>(argv.size()), argv.data(), out, err);
+  r.out = out.str();
+  r.err = err.str();
+  return r;
+}
+
+fs::path fresh_dir(const std::string& name) {
+  const fs::path dir = fs::temp_directory_path() / ("sandcell_test_triaxial_" + name);
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  return dir;
+}
+
+void write(const fs::path& path, const std::string& text) { std::ofstream(path) << text; }
+std::string read(const fs::path& path) {
+  std::ifstream in(path);
+  std::ostringstream s;
+  s << in.rdbuf();
+  return s.str();
+}
+
+// A small, soft sample that prepares in seconds: 300 spheres, E = 1 GPa (dt 8x the default's),
+// p0 = 0.1 MPa.
+const std::string k_small = R"([sample]
+count = 300
+d_min = 5.0e-3
+d_max = 7.5e-3
+seed = 3
+[material]
+young = 1.0e9
+[prepare]
+max_rate = 20.0
+check_interval = 500
+[shear]
+strain_rate = 2.0
+max_axial_strain = 0.03
+[tests]
+path = "constant_p"
+b = 0.5
+p0 = 0.1e6
+[output]
+series_interval = 100
+plot = false
+)";
+
+// Reads a whole dataset of doubles with the HDF5 C API (independent of the engine's writer).
+std::vector<double> dataset(const fs::path& file, const std::string& name) {
+  std::vector<double> v;
+  const hid_t f = H5Fopen(file.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
+  REQUIRE(f >= 0);
+  const hid_t d = H5Dopen2(f, name.c_str(), H5P_DEFAULT);
+  REQUIRE(d >= 0);
+  const hid_t space = H5Dget_space(d);
+  const hssize_t n = H5Sget_simple_extent_npoints(space);
+  v.resize(static_cast<std::size_t>(n));
+  if (n > 0) REQUIRE(H5Dread(d, H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, v.data()) >= 0);
+  H5Sclose(space);
+  H5Dclose(d);
+  H5Fclose(f);
+  return v;
+}
+
+bool has_link(const fs::path& file, const std::string& name) {
+  const hid_t f = H5Fopen(file.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
+  if (f < 0) return false;
+  const bool yes = H5Lexists(f, name.c_str(), H5P_DEFAULT) > 0;
+  H5Fclose(f);
+  return yes;
+}
+
+}  // namespace
+
+TEST_CASE("triaxial: each class of bad input exits 2 naming the key, and clobbers nothing") {
+  const fs::path dir = fresh_dir("bad");
+  write(dir / "index.csv", "results of an earlier run\n");  // must survive every failed call
+  struct Case {
+    const char* what;
+    std::string config;
+    const char* expect;  // in the one-line message
+  };
+  const std::string base = k_small;
+  const auto with = [&](const std::string& section, const std::string& line) {
+    std::string c = base;
+    const std::string head = "[" + section + "]\n";
+    c.insert(c.find(head) + head.size(), line + "\n");
+    return c;
+  };
+  const Case cases[] = {
+      {"syntax", base + "[output\n", "TOML syntax error"},
+      {"unknown key", with("material", "yuong = 1e9"), "material.yuong"},
+      {"unknown section", base + "[materials]\ndensity = 1\n", "[materials]: unknown section"},
+      {"wrong type", with("shear", "critical_window = \"lots\""), "shear.critical_window = \"lots\": expected a number"},
+      {"out of range", with("tests", "parallel = 0"), "tests.parallel = 0"},
+      {"cell narrower than 2 r_max + skin", std::string(base).replace(base.find("max_axial_strain = 0.03"), 23, "max_axial_strain = 2.0"),
+       "sample.count = 300: the cell would narrow to"},
+      {"dt above the stability limit", with("time", "dt_fraction = 1.5"), "time.dt_fraction = 1.5"},
+      {"bad gradation", with("sample", "distribution = \"gradation\"\ngradation = [[0.005, 0], [0.004, 100]]"),
+       "diameters must increase"},
+      {"missing packing file", with("sample", "file = \"/nonexistent/packing.txt\""), "sample.file"},
+  };
+  for (const Case& c : cases) {
+    const std::string what = c.what;
+    CAPTURE(what);
+    // The [time] table may be missing from the base config: add it for the dt case.
+    std::string config = c.config;
+    if (std::string(c.what) == "dt above the stability limit") config = base + "[time]\ndt_fraction = 1.5\n";
+    write(dir / "bad.toml", config);
+    const Result r = run({(dir / "bad.toml").string(), "--out", dir.string()});
+    INFO(r.err);
+    CHECK(r.code == 2);
+    CHECK(r.err.find(c.expect) != std::string::npos);
+    CHECK(std::count(r.err.begin(), r.err.end(), '\n') == 1);  // one line
+    CHECK(read(dir / "index.csv") == "results of an earlier run\n");
+  }
+  // Bad command line: unknown option, and --threads out of range.
+  CHECK(run({"--frobnicate"}).code == 2);
+  const Result t = run({"--threads", "0"});
+  CHECK(t.code == 2);
+  CHECK(t.err.find("--threads") != std::string::npos);
+  // A valid config into a directory holding an earlier run: refused unless --resume or --overwrite.
+  write(dir / "good.toml", base);
+  const Result e = run({(dir / "good.toml").string(), "--out", dir.string()});
+  CHECK(e.code == 2);
+  CHECK(e.err.find("--resume") != std::string::npos);
+  CHECK(read(dir / "index.csv") == "results of an earlier run\n");
+  fs::remove_all(dir);
+}
+
+TEST_CASE("triaxial: stop and --resume (other thread counts) is bitwise identical to an uninterrupted run") {
+  const fs::path dir = fresh_dir("resume");
+  write(dir / "small.toml", k_small);
+  const fs::path a = dir / "a", b = dir / "b";
+  const Result whole = run({(dir / "small.toml").string(), "--out", a.string(), "--threads", "1"});
+  REQUIRE(whole.code == 0);
+  // The same run, stopped every 1000 steps of a job (as if killed right after a checkpoint) and
+  // resumed with 2, then 3, then 2 ... threads until done. Both the preparation and the shear
+  // stage are interrupted at least once (each needs more than 1000 steps: checked below).
+  Result r = run({(dir / "small.toml").string(), "--out", b.string(), "--threads", "2", "--stop-after", "1000"});
+  int stops = 0;
+  while (r.code == 3 && stops < 100) {
+    ++stops;
+    r = run({(dir / "small.toml").string(), "--out", b.string(), "--resume", "--threads", stops % 2 ? "3" : "2",
+             "--stop-after", "1000"});
+  }
+  REQUIRE(r.code == 0);
+  const std::string test = "p-b0.50-p0_100kPa";
+  CheckpointExtra xa, xb;
+  const State sa = read_checkpoint(a / (test + ".checkpoint.h5"), &xa);
+  const State sb = read_checkpoint(b / (test + ".checkpoint.h5"), &xb);
+  const State pa = read_checkpoint(a / "sample-p0_100kPa.h5");
+  MESSAGE("preparation steps ", pa.clock.step, ", shear steps ", sa.clock.step, ", stops ", stops);
+  CHECK(pa.clock.step > 1000);
+  CHECK(sa.clock.step > 1000);
+  CHECK(stops >= 2);
+  CHECK(first_difference(sa.particles, sb.particles) == "");
+  CHECK(first_difference(sa.contacts, sb.contacts) == "");
+  CHECK(sa.cell.length == sb.cell.length);
+  CHECK(sa.cell.rate == sb.cell.rate);
+  CHECK(sa.clock.step == sb.clock.step);
+  CHECK(first_difference(pa.particles, read_checkpoint(b / "sample-p0_100kPa.h5").particles) == "");
+  // The results series too (wall time aside), row for row.
+  for (const char* name : {"/series/step", "/series/stress", "/series/e", "/series/Z", "/series/strain"}) {
+    CAPTURE(name);
+    CHECK(dataset(a / (test + ".h5"), name) == dataset(b / (test + ".h5"), name));
+    CHECK(dataset(a / "prepare-p0_100kPa.h5", name) == dataset(b / "prepare-p0_100kPa.h5", name));
+  }
+  fs::remove_all(dir);
+}
+
+TEST_CASE("triaxial: the embedded default runs end to end and writes the documented datasets") {
+  // The default (2000 spheres, 0.5 MPa, constant p, b = 0.5), shortened to 1.5 % axial strain.
+  const fs::path dir = fresh_dir("default");
+  const Result r = run({"--out", dir.string(), "--max-axial-strain", "0.015"});
+  INFO(r.out, r.err);
+  REQUIRE(r.code == 0);
+  const fs::path results = dir / "p-b0.50-p0_500kPa.h5";
+  for (const char* name : {"time", "step", "strain", "stress", "principal_stress", "p", "q", "eta", "b", "theta",
+                           "eps_v", "eps_q", "e", "Z", "Z_mech", "fabric", "kinetic_energy",
+                           "unbalanced_force_ratio", "inertial_number", "wall_time"}) {
+    CAPTURE(name);
+    CHECK(has_link(results, std::string("/series/") + name));
+  }
+  CHECK(has_link(results, "/snapshots"));
+  CHECK(fs::exists(dir / "p-b0.50-p0_500kPa.xdmf"));
+  CHECK(fs::exists(dir / "sample-p0_500kPa.h5"));
+  CHECK(read(dir / "index.csv").find("p-b0.50-p0_500kPa,constant_p,0.5,500000") != std::string::npos);
+  // Physics sanity of what was written: the prepared sample is at p0 (tolerance 1 % per axis, the
+  // preparation's criterion), and p stays within 2 % of its target after the first 1 % of axial
+  // strain (the servo's criterion).
+  const std::vector<double> p = dataset(results, "/series/p");
+  const std::vector<double> strain = dataset(results, "/series/strain");  // (rows, 3)
+  CHECK(p.front() == doctest::Approx(0.5e6).epsilon(0.01));
+  int checked = 0;
+  for (std::size_t k = 0; k < p.size(); ++k)
+    if (strain[3 * k] >= 0.01) {
+      CHECK(p[k] == doctest::Approx(0.5e6).epsilon(0.02));
+      ++checked;
+    }
+  CHECK(checked >= 3);
+  fs::remove_all(dir);
+}
