@@ -3,6 +3,7 @@
 // thread counts) is bitwise identical to an uninterrupted one; the embedded default runs end to end
 // and its results file holds the documented datasets.
 #include "engine/checkpoint.hpp"
+#include "config.hpp"
 #include "run.hpp"
 
 #include <doctest/doctest.h>
@@ -230,4 +231,12 @@ TEST_CASE("triaxial: the embedded default runs end to end and writes the documen
     }
   CHECK(checked >= 3);
   fs::remove_all(dir);
+}
+
+TEST_CASE("triaxial: the shipped configs parse, and default.toml is the embedded default") {
+  const fs::path dir = fs::path(SANDCELL_SOURCE_DIR) / "apps/triaxial/configs";
+  CHECK(read(dir / "default.toml") == triaxial::k_default_config);
+  const triaxial::Config paper = triaxial::parse_config(read(dir / "paper.toml"), "paper.toml");
+  CHECK(paper.tests.size() == 60);  // 6 p0 x 2 paths x 5 b
+  CHECK(paper.sample.generation.count == 19436);
 }
