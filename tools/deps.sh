@@ -3,7 +3,8 @@
 # everything is already there (idempotent). Uses sudo when not run as root.
 set -euo pipefail
 packages=(build-essential cmake ninja-build libeigen3-dev libtbb-dev libhdf5-dev doctest-dev
-          libtomlplusplus-dev libcli11-dev libfmt-dev)
+          libtomlplusplus-dev libcli11-dev libfmt-dev
+          python3-h5py python3-matplotlib python3-numpy python3-scipy)
 missing=()
 for p in "${packages[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q 'install ok installed' || missing+=("$p")
