@@ -246,7 +246,6 @@ class Runner {
   void shear(const TestSpec& test, Summary& summary);
 
  private:
-  Executor exec() const { return Executor(ExecutorConfig{Backend::tbb, plan_.job_threads}); }
   const Plan& plan_;
   Log& log_;
   bool single_job() const { return plan_.config.parallel == 1; }
@@ -285,9 +284,7 @@ bool Runner::prepare(double p0, Summary& summary) {
     state = make_state(model, packing);
     results.emplace(ResultsFile::create(series, plan_.config.text, {{"job", summary.name}, {"stage", "prepare"}}));
   }
-  Executor ex = exec();
   World world(model, std::move(state), ExecutorConfig{Backend::tbb, plan_.job_threads}, !resumed);
-  (void)ex;
   MeasureOptions mo;
   mo.d50 = median_diameter(world.state().particles);
   mo.density = plan_.config.material.density;
