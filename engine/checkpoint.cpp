@@ -64,6 +64,7 @@ void write_contents(h5::File& file, const State& state, const CheckpointExtra& e
   cell.set_values<double>("length", as_span(state.cell.length));
   cell.set_values<double>("length0", as_span(state.cell.length0));
   cell.set_values<double>("rate", as_span(state.cell.rate));
+  cell.set_values<double>("servo_integral", as_span(state.cell.servo_integral));
 
   h5::Group clock = root.create_group("clock");
   clock.set_value<std::uint64_t>("step", state.clock.step);
@@ -141,6 +142,8 @@ State read_checkpoint(const std::filesystem::path& path, CheckpointExtra* extra)
     state.cell.length = to_vec3(cell, "length");
     state.cell.length0 = to_vec3(cell, "length0");
     state.cell.rate = to_vec3(cell, "rate");
+    // Checkpoints from before the servo had an integral term carry none: zero, as a stage starts.
+    state.cell.servo_integral = cell.has("servo_integral") ? to_vec3(cell, "servo_integral") : Vec3::Zero();
 
     const h5::Group clock = root.open_group("clock");
     state.clock.step = clock.get_value<std::uint64_t>("step");

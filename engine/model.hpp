@@ -72,7 +72,8 @@ struct ServoSettings {
   double p = 0.0;                   // Pa, mean stress of the isotropic and constant-p paths
   double b = 0.0;                   // -, intermediate principal stress ratio, in [0, 1]
   double sigma3 = 0.0;              // Pa, minor stress of the constant-sigma3 path
-  double gain = 0.0;                // 1/s, g in eps_dot = g (sigma* - sigma)/|sigma*|
+  double gain = 0.0;                // 1/s, g in eps_dot = g (err + I / T_i), err = (sigma* - sigma)/|sigma*|
+  double integral_time = 0.0;       // s, T_i of the integral term (I = time integral of err); 0: none (P law)
   double max_rate = 0.0;            // 1/s, cap on |eps_dot| of a stress-controlled axis
   int interval = 1;                 // steps between stress measurements and servo updates
   bool kinetic_stress = false;      // include the kinetic part sum m v~ (x) v~ / V in the measured stress

@@ -40,6 +40,8 @@ void validate(const ServoSettings& servo) {
   if (!(servo.max_rate > 0.0) || !std::isfinite(servo.max_rate))
     fail("max_rate", servo.max_rate, "must be a finite value > 0 1/s");
   if (servo.interval < 1) fail("interval", servo.interval, "must be >= 1 step");
+  if (!(servo.integral_time >= 0.0) || !std::isfinite(servo.integral_time))
+    fail("integral_time", servo.integral_time, "must be a finite value >= 0 s (0: no integral term)");
   if (!(servo.b >= 0.0 && servo.b <= 1.0)) fail("b", servo.b, "must be in [0, 1]");
   for (int k = 0; k < 3; ++k)
     if (!std::isfinite(servo.strain_rate[k]))

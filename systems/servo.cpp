@@ -39,17 +39,28 @@ double stress_scale(const ServoSettings& servo) {
 }
 }  // namespace
 
-Vec3 servo_strain_rates(const ServoSettings& servo, const Vec3& sigma) {
+Vec3 servo_strain_rates(const ServoSettings& servo, const Vec3& sigma, Vec3* integral, double interval) {
   const Vec3 target = path_targets(servo, sigma[0]);
   const double floor = 1e-3 * stress_scale(servo);
   Vec3 rate;
   for (int k = 0; k < 3; ++k) {
     if (servo.control[k] == AxisControl::strain) {
       rate[k] = servo.strain_rate[k];
-    } else {
-      const double error = (target[k] - sigma[k]) / std::max(std::abs(target[k]), floor);
-      rate[k] = std::clamp(servo.gain * error, -servo.max_rate, servo.max_rate);
+      continue;
     }
+    const double error = (target[k] - sigma[k]) / std::max(std::abs(target[k]), floor);
+    if (integral == nullptr || !(servo.integral_time > 0.0)) {
+      rate[k] = std::clamp(servo.gain * error, -servo.max_rate, servo.max_rate);
+      continue;
+    }
+    // PI: the integral removes the lag a P law keeps while the target moves (error ~ rate / g).
+    // Anti-windup: the integral advances only while the output is inside the cap, or when the
+    // error would bring it back inside.
+    double& i = (*integral)[k];
+    const double trial_i = i + error * interval;
+    const double trial = servo.gain * (error + trial_i / servo.integral_time);
+    if (std::abs(trial) <= servo.max_rate || trial * error < 0.0) i = trial_i;
+    rate[k] = std::clamp(servo.gain * (error + i / servo.integral_time), -servo.max_rate, servo.max_rate);
   }
   return rate;
 }
@@ -58,7 +69,8 @@ void Servo::run(const Model& model, State& state, Scratch& scratch, Executor&) {
   if (!servo_due(model.servo, state.clock.step)) return;
   const MeasuredStress& measured = scratch.read<Component::stress>();
   Cell& cell = state.write<Component::cell>();
-  const Vec3 rate = servo_strain_rates(model.servo, measured.stress.diagonal());
+  const Vec3 rate = servo_strain_rates(model.servo, measured.stress.diagonal(), &cell.servo_integral,
+                                       model.dt * model.servo.interval);
   cell.rate = -rate;  // D_kk is tension positive
 }
 

@@ -25,7 +25,11 @@ struct Servo {
 /// is strain controlled on the others; there it is returned as s1 itself).
 Vec3 path_targets(const ServoSettings& servo, double sigma1);
 
-/// Cell strain rates (compression positive, 1/s) the servo sets for a measured stress diagonal.
-Vec3 servo_strain_rates(const ServoSettings& servo, const Vec3& sigma);
+/// Cell strain rates (compression positive, 1/s) the servo sets for a measured stress diagonal:
+/// eps_dot_k = clamp(g (err_k + I_k / T_i), +-max_rate), err_k = (sigma*_k - sigma_k)/|sigma*_k|.
+/// With `integral` (the cell's servo_integral) and servo.integral_time > 0, I_k advances by
+/// err_k * interval (s) first, unless the output sits at the cap (anti-windup); otherwise a P law.
+Vec3 servo_strain_rates(const ServoSettings& servo, const Vec3& sigma, Vec3* integral = nullptr,
+                        double interval = 0.0);
 
 }  // namespace sandcell

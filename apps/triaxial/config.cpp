@@ -320,6 +320,7 @@ Config parse_config(const std::string& text, const std::string& source) {
     ShearConfig& h = c.shear;
     s.positive("strain_rate", h.strain_rate, "1/s");
     s.number("gain", h.gain, 0.0, 1e9, "must be >= 0 1/s (0: derived)");
+    s.number("integral_time", h.integral_time, 0.0, 1e9, "must be >= 0 s (0: derived)");
     s.number("max_rate", h.max_rate, 0.0, 1e9, "must be >= 0 1/s (0: 10 x strain_rate)");
     s.integer("servo_interval", h.servo_interval, 1, 1'000'000, "must be an integer in [1, 1e6] steps");
     s.number("max_axial_strain", h.max_axial_strain, 1e-9, 2.0, "must be in (0, 2] (logarithmic strain)");

@@ -40,6 +40,7 @@ enum class ShearPath { constant_p, constant_sigma3, strain };
 struct ShearConfig {
   double strain_rate = 1.0;       // 1/s, axial (axis 1) compression rate of the stress paths
   double gain = 0.0;              // 1/s, lateral servo gain (0: derived, see README)
+  double integral_time = 0.0;     // s, integral time of the lateral servo (0: derived, see README)
   double max_rate = 0.0;          // 1/s, cap on lateral rates (0: 10 x strain_rate)
   int servo_interval = 1;         // steps between servo updates
   double max_axial_strain = 0.2;  // -, stop at this axial (log) strain
