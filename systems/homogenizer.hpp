@@ -63,6 +63,9 @@ struct Measures {
   Mat3 fabric = Mat3::Zero();          // -, <n (x) n> over touching contacts
   double unbalanced = 0.0;             // -, mean |F_net| / mean |f_contact|
   double kinetic_energy = 0.0;         // J, fluctuating translational + rotational
+  double elastic_energy = 0.0;         // J, stored in the contacts: normal Hertz 8/15 E* sqrt(R*) delta^(5/2),
+                                       // tangential |F_t^el|^2 / (2 k_t), rolling |M|^2 / (2 k_r)
+  double max_overlap_ratio = 0.0;      // -, largest delta / min(R_i, R_j) over touching contacts
   double inertial_number = 0.0;        // -, (eps_dot_1 - eps_dot_3) d50 sqrt(rho / p)
 };
 

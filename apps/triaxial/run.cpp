@@ -11,13 +11,17 @@
 
 #include <CLI/CLI.hpp>
 
+#include <sys/wait.h>
 #include <unistd.h>
 
 #include <algorithm>
 #include <atomic>
 #include <chrono>
 #include <cmath>
+#include <cerrno>
 #include <cstdio>
+#include <cstdlib>
+#include <iostream>
 #include <filesystem>
 #include <fstream>
 #include <mutex>
@@ -26,8 +30,8 @@
 #include <sstream>
 #include <thread>
 
-#ifndef SANDCELL_PLOT_SCRIPT
-#define SANDCELL_PLOT_SCRIPT ""
+#ifndef SANDCELL_SCRIPT_DIR
+#define SANDCELL_SCRIPT_DIR ""
 #endif
 
 namespace sandcell::triaxial {
@@ -37,6 +41,27 @@ namespace fs = std::filesystem;
 namespace {
 
 using Clock = std::chrono::steady_clock;
+
+// The Python helpers (plot, analysis): next to an installed binary (<prefix>/share/sandcell), else
+// in the source tree the binary was built from. Empty when neither exists.
+fs::path script_path(const std::string& name) {
+  std::error_code ec;
+  const fs::path exe = fs::read_symlink("/proc/self/exe", ec);
+  if (!ec) {
+    const fs::path installed = exe.parent_path().parent_path() / "share" / "sandcell" / name;
+    if (fs::exists(installed)) return installed;
+  }
+  const fs::path source = fs::path(SANDCELL_SCRIPT_DIR) / name;
+  if (!std::string(SANDCELL_SCRIPT_DIR).empty() && fs::exists(source)) return source;
+  return {};
+}
+
+// The interpreter: $SANDCELL_PYTHON, else Debian's python3 (it has h5py, numpy, scipy, matplotlib).
+std::string python() {
+  const char* env = std::getenv("SANDCELL_PYTHON");
+  if (env && *env) return env;
+  return fs::exists("/usr/bin/python3") ? "/usr/bin/python3" : "python3";
+}
 
 std::string num(double v, const char* format = "%.6g") {
   char buf[64];
@@ -131,6 +156,8 @@ void append_row(ResultsFile& results, const State& state, const Measures& m, dou
   results.append("rattlers", static_cast<double>(m.rattlers), "-");
   results.append("fabric", std::span<const double>(fabric, 6), "- (xx yy zz xy xz yz)");
   results.append("kinetic_energy", m.kinetic_energy, "J");
+  results.append("elastic_energy", m.elastic_energy, "J");
+  results.append("max_overlap_ratio", m.max_overlap_ratio, "- (largest overlap / smaller radius)");
   results.append("unbalanced_force_ratio", m.unbalanced, "-");
   results.append("inertial_number", m.inertial_number, "-");
   results.append("wall_time", wall, "s");
@@ -152,6 +179,54 @@ void check_finite(const State& state, const Measures& m) {
   if (!std::isfinite(m.inv.p) || !state.cell.length.allFinite())
     throw SimulationError("step " + std::to_string(state.clock.step) + ": cell stress or lengths are not finite");
 }
+
+// The live accuracy indicators of a shearing run, each with its safe range. A run that leaves one
+// gets a warning line (once per indicator and job: the step, the value, the range and what to
+// change); the worst value is in the job's last line.
+class AccuracyWatch {
+ public:
+  AccuracyWatch(std::string job, Log& log) : job_(std::move(job)), log_(log) {}
+
+  void check(const Measures& m, std::uint64_t step) {
+    const double ratio = m.elastic_energy > 0.0 ? m.kinetic_energy / m.elastic_energy : 0.0;
+    const double values[k_count] = {m.inertial_number, m.unbalanced, ratio, m.max_overlap_ratio};
+    for (int k = 0; k < k_count; ++k) {
+      worst_[k] = std::max(worst_[k], values[k]);
+      if (values[k] > k_limits[k].limit && !warned_[k]) {
+        warned_[k] = true;
+        log_.line(job_ + ": warning: step " + std::to_string(step) + ": " + k_limits[k].name + " = " +
+                  num(values[k], "%.3g") + " > " + num(k_limits[k].limit, "%g") + " (" + k_limits[k].why + ")");
+      }
+    }
+  }
+  std::string worst() const {
+    std::string s = "max I " + num(worst_[0], "%.2g") + ", unbalanced " + num(worst_[1], "%.2g") + ", Ek/Ee " +
+                    num(worst_[2], "%.2g") + ", overlap/R " + num(worst_[3], "%.2g");
+    return s;
+  }
+
+  struct Limit {
+    const char* name;
+    double limit;
+    const char* why;
+  };
+  static constexpr int k_count = 4;
+  // Safe ranges: I < 1e-3 is the quasi-static regime of dense granular flow (GDR MiDi 2004); an
+  // unbalanced force ratio above 0.1 and a kinetic energy above 1 % of the stored elastic energy
+  // mean inertia carries part of the load; Hertz theory assumes overlaps small beside the radius.
+  static constexpr Limit k_limits[k_count] = {
+      {"inertial number", 1e-3, "quasi-static needs I < 1e-3: lower shear.strain_rate"},
+      {"unbalanced force ratio", 0.1, "forces far from balance: lower shear.strain_rate"},
+      {"kinetic / elastic energy", 0.01, "inertia carries load: lower shear.strain_rate"},
+      {"max overlap / radius", 0.05, "beyond small-strain Hertz contact: raise material.young or lower p0"},
+  };
+
+ private:
+  std::string job_;
+  Log& log_;
+  bool warned_[k_count] = {};
+  double worst_[k_count] = {};
+};
 
 // Wall time and checkpoint timing of a job.
 struct Timer {
@@ -179,11 +254,17 @@ void save(const fs::path& path, const State& state, CheckpointExtra extra, Timer
 
 // Servo gain derived from the physics when the config leaves it 0. A strain increment changes the
 // stress through the packing's stiffness K ~ p (E*/p)^(2/3) (Hertzian contacts), so one servo step
-// changes the normalized error by about g dt (E*/p)^(2/3); the stress settles over some tens of
-// steps after a strain increment, so that loop gain per step must stay well below 1/30.
-// g = alpha (p/E*)^(2/3) / dt keeps it at alpha; alpha = 0.05 (preparation, from rest through
-// jamming) and 0.25 (shearing, tracking a moving target) were found stable on the default sample
-// (2000 spheres, E = 70 GPa, 0.5 MPa) and on a soft one (300 spheres, E = 1 GPa, 0.1 MPa).
+// changes the normalized error by about c g dt (E*/p)^(2/3), c of order 10 for the affine response.
+// g = alpha (p/E*)^(2/3) / dt keeps that loop gain at c alpha whatever the material, pressure and
+// dt. Measured (every step sampled, 300 soft spheres sheared at 10/s, constant p, b = 0): alpha =
+// 0.25 and 0.2 oscillate with period 2 steps (p alternating +-10 %), 0.1 does not. A P law lags a
+// moving target by err ~ rate / g (2 % there); the integral term removes it: with T_i = 1000 dt
+// the rms |p - p0|/p0 after 1 % strain fell from 2.0 % to 0.4 % (T_i = 200 dt: 0.1 %, closer to
+// the slow modes of large samples). Preparation (a fixed target from rest through jamming) keeps
+// the P law with alpha = 0.05.
+constexpr double k_shear_alpha = 0.1;
+constexpr double k_integral_steps = 1000.0;
+
 double derived_gain(double alpha, double p, const Model& m) {
   const Material& mat = m.materials[0];
   const double e_star = mat.young / (2.0 * (1.0 - mat.poisson * mat.poisson));
@@ -218,7 +299,8 @@ Model shear_model(const Plan& plan, const TestSpec& test) {
   s.sigma3 = test.p0;
   s.b = test.b;
   s.max_rate = h.max_rate;
-  s.gain = h.gain > 0.0 ? h.gain : derived_gain(0.25, test.p0, m);
+  s.gain = h.gain > 0.0 ? h.gain : derived_gain(k_shear_alpha, test.p0, m);
+  s.integral_time = h.integral_time > 0.0 ? h.integral_time : k_integral_steps * m.dt;
   s.interval = h.servo_interval;
   return m;
 }
@@ -434,6 +516,7 @@ void Runner::shear(const TestSpec& test, Summary& summary) {
     state = read_checkpoint(sample_path(test.p0), nullptr);
     state.clock = {};
     state.cell.length0 = state.cell.length;
+    state.cell.servo_integral.setZero();  // servo state resets between stages
     if (test.path == ShearPath::strain) state.cell.rate = -h.strain_rates;
     else state.cell.rate = Vec3(-h.strain_rate, 0.0, 0.0);
     results.emplace(ResultsFile::create(path, plan_.config.text,
@@ -450,10 +533,15 @@ void Runner::shear(const TestSpec& test, Summary& summary) {
             std::to_string(plan_.job_threads) + " threads");
   std::uint64_t rows = 0;
   Measures m;
+  AccuracyWatch watch(test.name, log_);
+  if (plan_.config.dt_fraction > 0.3)
+    log_.line(test.name + ": warning: time.dt_fraction = " + num(plan_.config.dt_fraction) +
+              " > 0.3 of the Rayleigh time: contact collisions resolved by few steps");
   const auto row = [&]() {
     m = measure(world.model(), world.state(), world.executor(), mo);
     check_finite(world.state(), m);
     append_row(*results, world.state(), m, timer.elapsed());
+    if (world.state().clock.step > 0) watch.check(m, world.state().clock.step);
     history.eps1.push_back(m.strain[0]);
     history.p.push_back(m.inv.p);
     history.q.push_back(m.inv.q);
@@ -497,7 +585,8 @@ void Runner::shear(const TestSpec& test, Summary& summary) {
                                      : double(h.steps - s) / speed;
       log_.progress(test.name + " step " + std::to_string(s) + "  eps1 " + num(100 * eps1, "%.2f") + " %  p " +
                         num(m.inv.p / 1e6, "%.4f") + " MPa  q " + num(m.inv.q / 1e6, "%.4f") + " MPa  e " +
-                        num(m.void_ratio, "%.4f") + "  " + num(speed, "%.0f") + " steps/s  ETA " + num(left, "%.0f") + " s",
+                        num(m.void_ratio, "%.4f") + "  I " + num(m.inertial_number, "%.1e") + "  unbal " +
+                        num(m.unbalanced, "%.3f") + "  " + num(speed, "%.0f") + " steps/s  ETA " + num(left, "%.0f") + " s",
                     single_job());
     }
   }
@@ -521,16 +610,15 @@ void Runner::shear(const TestSpec& test, Summary& summary) {
   log_.line(test.name + ": done at step " + std::to_string(st.clock.step) + ", eps1 = " + num(100 * m.strain[0], "%.2f") +
             " %: peak q/p = " + num(summary.peak_eta, "%.4f") + " at eps1 = " + num(100 * summary.peak_strain, "%.2f") +
             " %, final q/p = " + num(m.inv.eta, "%.4f") + ", p = " + num(m.inv.p / 1e6, "%.4f") + " MPa, b = " +
-            num(m.inv.b, "%.3f") + ", e = " + num(m.void_ratio, "%.4f") + ", wall " + num(summary.wall, "%.1f") + " s");
+            num(m.inv.b, "%.3f") + ", e = " + num(m.void_ratio, "%.4f") + ", wall " + num(summary.wall, "%.1f") + " s; " +
+            watch.worst());
 
   if (plan_.config.output.plot) {
     // The plot is a convenience: a missing python3/matplotlib is a warning, not a failure.
-    std::string script = SANDCELL_PLOT_SCRIPT;
-    const char* python = std::getenv("SANDCELL_PYTHON");
-    std::string py = python ? python : (fs::exists("/usr/bin/python3") ? "/usr/bin/python3" : "python3");
+    const fs::path script = script_path("plot_triaxial.py");
     const fs::path png = plan_.out / (test.name + ".png");
-    if (!script.empty() && fs::exists(script)) {
-      const std::string cmd = "'" + py + "' '" + script + "' '" + path.string() + "' '" + png.string() + "' 2>&1";
+    if (!script.empty()) {
+      const std::string cmd = "'" + python() + "' '" + script.string() + "' '" + path.string() + "' '" + png.string() + "' 2>&1";
       if (std::system(cmd.c_str()) == 0) log_.line(test.name + ": plot " + png.string());
       else log_.line(test.name + ": warning: no plot (needs python3 with h5py and matplotlib: " + cmd + ")");
     }
@@ -656,10 +744,44 @@ void run_parallel(std::size_t n, int workers, Fn&& fn) {
 
 }  // namespace
 
+static int analyze_main(int argc, const char* const* argv, std::ostream& err) {
+  const fs::path script = script_path("analyze.py");
+  if (script.empty()) {
+    err << "triaxial analyze: analyze.py not found (looked in <prefix>/share/sandcell and " << SANDCELL_SCRIPT_DIR << ")\n";
+    return 2;
+  }
+  const std::string py = python();
+  std::vector<std::string> args{py, script.string()};
+  for (int k = 1; k < argc; ++k) args.emplace_back(argv[k]);
+  std::vector<char*> cargs;
+  for (std::string& a : args) cargs.push_back(a.data());
+  cargs.push_back(nullptr);
+  std::cout.flush();
+  const pid_t pid = ::fork();
+  if (pid < 0) {
+    err << "triaxial analyze: cannot start " << py << '\n';
+    return 1;
+  }
+  if (pid == 0) {
+    ::execvp(cargs[0], cargs.data());
+    std::fprintf(stderr, "triaxial analyze: cannot run %s (needs python3 with numpy, scipy, matplotlib, h5py; set SANDCELL_PYTHON)\n",
+                 cargs[0]);
+    std::_Exit(127);
+  }
+  int status = 0;
+  while (::waitpid(pid, &status, 0) < 0 && errno == EINTR) {
+  }
+  return WIFEXITED(status) ? WEXITSTATUS(status) : 1;
+}
+
 int triaxial_main(int argc, const char* const* argv, std::ostream& out, std::ostream& err) {
+  // `triaxial analyze RESULTS... [--out DIR]`: the critical-state and dilatancy analysis (analyze.py).
+  if (argc >= 2 && std::string(argv[1]) == "analyze") return analyze_main(argc - 1, argv + 1, err);
   Options options;
   bool print_default = false;
   CLI::App app{"sandcell triaxial: true triaxial DEM tests in a stress-controlled periodic cell"};
+  app.footer("Analysis of results (critical state line, M(theta), dilatancy; report and figures):\n"
+             "  triaxial analyze RESULTS.h5|DIR... [--out DIR]   (triaxial analyze --help for its options)");
   app.add_option("config", options.config_path, "TOML configuration (none: the embedded default)");
   app.add_option("--threads", options.threads, "worker threads in all (default: all cores)")->check(CLI::Range(1, 1024));
   app.add_option("--out", options.out, "output directory (default: results/<config name>)");

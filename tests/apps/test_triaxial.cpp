@@ -208,7 +208,7 @@ TEST_CASE("triaxial: the embedded default runs end to end and writes the documen
   REQUIRE(r.code == 0);
   const fs::path results = dir / "p-b0.50-p0_500kPa.h5";
   for (const char* name : {"time", "step", "strain", "stress", "principal_stress", "p", "q", "eta", "b", "theta",
-                           "eps_v", "eps_q", "e", "Z", "Z_mech", "fabric", "kinetic_energy",
+                           "eps_v", "eps_q", "e", "Z", "Z_mech", "fabric", "kinetic_energy", "elastic_energy", "max_overlap_ratio",
                            "unbalanced_force_ratio", "inertial_number", "wall_time"}) {
     CAPTURE(name);
     CHECK(has_link(results, std::string("/series/") + name));

@@ -75,6 +75,13 @@ TEST_CASE("homogenizer: strained simple-cubic lattice gives the analytic Hertz s
   CHECK(m.void_ratio == doctest::Approx(a.prod() * n * n * n / vs - 1.0).epsilon(1e-14));
   // Equilibrium: every sphere's forces cancel by symmetry (to round-off).
   CHECK(m.unbalanced < 1e-9);
+  // Stored energy: the integral of the Hertz force over the overlap, 8/15 E* sqrt(R*) delta^(5/2),
+  // per contact (n^3 per axis); no tangential or rolling history yet. Same round-off as the stress
+  // (delta^2.5 carries 2.5 x 1e-12): 1e-9.
+  double energy = 0.0;
+  for (int k = 0; k < 3; ++k) energy += n * n * n * 8.0 / 15.0 * es * std::sqrt(0.5 * r) * std::pow(delta[k], 2.5);
+  CHECK(m.elastic_energy == doctest::Approx(energy).epsilon(1e-9));
+  CHECK(m.max_overlap_ratio == doctest::Approx(delta.maxCoeff() / r).epsilon(1e-9));
 }
 
 TEST_CASE("homogenizer: stress is symmetric and equals the virial of independently computed forces") {
