@@ -5,6 +5,12 @@
 //             [--tangential MODEL] [--compat] [--sort STEPS] [--serial] [--json]
 // --sort STEPS: spatial sort interval (default 1000; 0 = never).
 //
+//   dem-bench --costs [--scene FILE] [--steps N] [--threads T] [--rounds R]
+// The cost of each optional system: the benchmark scene stepped with one option changed at a time
+// (no rolling, LIGGGHTS-compatible velocities, incremental tangential history, the servo with its
+// homogenizer, the servo with the kinetic stress), R rounds interleaved so that machine noise
+// falls on every variant alike; prints the median throughput of each and its ratio to the default.
+//
 // Scene A: fixed periodic box. Scene B (--deform RATE): box shortened along z at a constant
 // engineering strain rate RATE (1/s), x and y fixed, as LIGGGHTS `fix deform ... erate -RATE`.
 // Prints particles, steps, threads, wall seconds of the step loop, particle-steps per second, mean
@@ -16,8 +22,11 @@
 
 #include <sys/resource.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cstdio>
+#include <functional>
+#include <vector>
 #include <cstdlib>
 #include <string>
 #include <string_view>
@@ -42,6 +51,53 @@ double parse_number(const char* key, const char* text, double lo, double hi) {
                 std::to_string(hi) + "]");
   return v;
 }
+// One variant of the benchmark model for --costs.
+struct Variant {
+  const char* name;
+  std::function<void(Model&)> change;
+};
+
+int run_costs(const Model& base, const Packing& packing, long steps, int threads, int rounds) {
+  const auto servo = [](Model& m, bool kinetic) {
+    m.servo.enabled = true;  // every axis strain-controlled at rate 0: the cost of measuring, no motion
+    m.servo.path = StressPath::fixed;
+    m.servo.gain = 1.0;
+    m.servo.max_rate = 1.0;
+    m.servo.kinetic_stress = kinetic;
+  };
+  const std::vector<Variant> variants = {
+      {"default (epsd2, history, affine)", [](Model&) {}},
+      {"rolling none", [](Model& m) { m.contact.rolling = RollingModel::none; }},
+      {"liggghts_compat on", [](Model& m) { m.contact.liggghts_compat = true; }},
+      {"tangential incremental", [](Model& m) { m.contact.tangential = TangentialModel::incremental; }},
+      {"servo + homogenizer", [&](Model& m) { servo(m, false); }},
+      {"servo + kinetic stress", [&](Model& m) { servo(m, true); }},
+  };
+  std::vector<std::vector<double>> rates(variants.size());
+  for (int r = 0; r < rounds; ++r)
+    for (std::size_t v = 0; v < variants.size(); ++v) {
+      Model model = base;
+      variants[v].change(model);
+      World world(model, make_state(model, packing), ExecutorConfig{Backend::tbb, threads});
+      const auto t0 = std::chrono::steady_clock::now();
+      world.step(static_cast<std::uint64_t>(steps));
+      const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+      rates[v].push_back(double(world.state().particles.size()) * double(steps) / wall);
+    }
+  std::printf("cost of optional systems: %zu particles, %ld steps x %d rounds (interleaved), %d threads\n",
+              packing.radius.size(), steps, rounds, threads);
+  std::printf("  %-34s %12s %8s\n", "variant", "M p-steps/s", "ratio");
+  double base_rate = 0.0;
+  for (std::size_t v = 0; v < variants.size(); ++v) {
+    std::vector<double> x = rates[v];
+    std::sort(x.begin(), x.end());
+    const double median = x[x.size() / 2];
+    if (v == 0) base_rate = median;
+    std::printf("  %-34s %12.3f %8.3f\n", variants[v].name, median / 1e6, median / base_rate);
+  }
+  return 0;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -49,7 +105,8 @@ int main(int argc, char** argv) {
   long steps = 2000;
   int threads = 0;
   double deform = 0.0;
-  bool json = false, serial = false;
+  bool json = false, serial = false, costs = false;
+  int rounds = 3;
   long sort_interval = -1;
   Model model;
   for (int a = 1; a < argc; ++a) {
@@ -66,6 +123,8 @@ int main(int argc, char** argv) {
     else if (arg == "--sort") sort_interval = static_cast<long>(parse_number("--sort", value(), 0, 1e9));
     else if (arg == "--serial") serial = true;
     else if (arg == "--json") json = true;
+    else if (arg == "--costs") costs = true;
+    else if (arg == "--rounds") rounds = static_cast<int>(parse_number("--rounds", value(), 1, 1000));
     else if (arg == "--rolling") {
       const std::string_view v = value();
       if (v == "none") model.contact.rolling = RollingModel::none;
@@ -80,7 +139,8 @@ int main(int argc, char** argv) {
       else usage_error("--tangential = '" + std::string(v) + "': allowed history, incremental");
     } else if (arg == "--help" || arg == "-h") {
       std::printf("usage: dem-bench [--scene FILE] [--steps N] [--threads T] [--deform RATE] [--rolling none|epsd2|epsd|cdt]\n"
-                  "                 [--tangential history|incremental] [--compat] [--sort STEPS] [--serial] [--json]\n");
+                  "                 [--tangential history|incremental] [--compat] [--sort STEPS] [--serial] [--json]\n"
+                  "       dem-bench --costs [--scene FILE] [--steps N] [--threads T] [--rounds R]\n");
       return 0;
     } else {
       usage_error("unknown argument '" + std::string(arg) + "' (see --help)");
@@ -100,6 +160,7 @@ int main(int argc, char** argv) {
   } catch (const std::exception& e) {
     usage_error(e.what());
   }
+  if (costs) return run_costs(model, packing, steps, threads, rounds);
   const ExecutorConfig exec{serial ? Backend::serial : Backend::tbb, threads};
   World world(model, make_state(model, packing), exec);
   const std::size_t n = world.state().particles.size();
