@@ -143,7 +143,7 @@ State read_checkpoint(const std::filesystem::path& path, CheckpointExtra* extra)
     state.cell.length0 = to_vec3(cell, "length0");
     state.cell.rate = to_vec3(cell, "rate");
     // Checkpoints from before the servo had an integral term carry none: zero, as a stage starts.
-    state.cell.servo_integral = cell.has("servo_integral") ? to_vec3(cell, "servo_integral") : Vec3::Zero();
+    state.cell.servo_integral = cell.has_attribute("servo_integral") ? to_vec3(cell, "servo_integral") : Vec3::Zero();
 
     const h5::Group clock = root.open_group("clock");
     state.clock.step = clock.get_value<std::uint64_t>("step");

@@ -59,6 +59,7 @@ void check_same_state(const State& a, const State& b) {
   CHECK(same_bits(a.cell.length, b.cell.length));
   CHECK(same_bits(a.cell.length0, b.cell.length0));
   CHECK(same_bits(a.cell.rate, b.cell.rate));
+  CHECK(same_bits(a.cell.servo_integral, b.cell.servo_integral));
   CHECK(a.clock.step == b.clock.step);
   CHECK(same_bits(a.clock.time, b.clock.time));
 }
@@ -84,6 +85,7 @@ State packing_state(const Model& model) {
   State s = test::jittered_lattice(model, 6, 2e-3, 1.00e-3, 1.03e-3, 0.02e-3, 1.0, 500.0, 11);
   s.cell.length0 = s.cell.length;
   s.cell.rate = Vec3(-30.0, 15.0, 15.0);
+  s.cell.servo_integral = Vec3(0.0, 1.25e-4, -3.5e-5);
   return s;
 }
 
