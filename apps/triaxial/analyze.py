@@ -1500,7 +1500,7 @@ def _nonneg(v):
 
 
 def parse_args(argv):
-    ap = _Parser(prog="analyze.py", description="Critical-state and dilatancy analysis of "
+    ap = _Parser(prog=os.environ.get("SANDCELL_ANALYZE_PROG", "analyze.py"), description="Critical-state and dilatancy analysis of "
                  "sandcell triaxial results: report.md, summary.json and figures in --out. "
                  "Methods and criteria: the docstring at the top of analyze.py.")
     ap.add_argument("results", nargs="*", metavar="RESULTS",

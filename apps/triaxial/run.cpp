@@ -200,9 +200,8 @@ class AccuracyWatch {
     }
   }
   std::string worst() const {
-    std::string s = "max I " + num(worst_[0], "%.2g") + ", unbalanced " + num(worst_[1], "%.2g") + ", Ek/Ee " +
-                    num(worst_[2], "%.2g") + ", overlap/R " + num(worst_[3], "%.2g");
-    return s;
+    return "max I " + num(worst_[0], "%.2g") + ", unbalanced " + num(worst_[1], "%.2g") + ", Ek/Ee " +
+           num(worst_[2], "%.2g") + ", overlap/R " + num(worst_[3], "%.2g");
   }
 
   struct Limit {
@@ -763,6 +762,7 @@ static int analyze_main(int argc, const char* const* argv, std::ostream& err) {
     return 1;
   }
   if (pid == 0) {
+    ::setenv("SANDCELL_ANALYZE_PROG", "triaxial analyze", 1);  // its usage lines name this command
     ::execvp(cargs[0], cargs.data());
     std::fprintf(stderr, "triaxial analyze: cannot run %s (needs python3 with numpy, scipy, matplotlib, h5py; set SANDCELL_PYTHON)\n",
                  cargs[0]);

@@ -21,6 +21,20 @@ State random_gas(const Model& model, std::size_t n, double box, double r_min, do
   return state;
 }
 
+Model quartz_model(double dt, double skin) {
+  Model m;
+  Material mat;
+  mat.young = 70e9;
+  mat.poisson = 0.3;
+  mat.restitution = 0.5;
+  mat.friction = 0.5;
+  mat.rolling_friction = 0.1;
+  m.materials = {mat};
+  m.dt = dt;
+  m.contact.skin = skin;
+  return m;
+}
+
 void throwing_assert_handler(const char*, int, const char*, const std::string& message) {
   throw AssertionError(message);
 }

@@ -13,6 +13,10 @@ namespace sandcell::test {
 State random_gas(const Model& model, std::size_t n, double box, double r_min, double r_max, double v_scale,
                  double w_scale, std::uint64_t seed);
 
+/// One material of the benchmark (quartz-like: E = 70 GPa, nu = 0.3, e = 0.5, mu = 0.5, mu_r = 0.1,
+/// epsd2 rolling, history tangential law) with the given time step and Verlet skin.
+Model quartz_model(double dt, double skin);
+
 /// An assert handler that throws, so a failing SANDCELL_CHECK can be caught by a test.
 struct AssertionError : std::runtime_error {
   using std::runtime_error::runtime_error;

@@ -15,19 +15,7 @@ using namespace sandcell;
 
 namespace {
 
-Model elastic_model() {
-  Model m;
-  Material mat;
-  mat.young = 70e9;
-  mat.poisson = 0.3;
-  mat.restitution = 0.5;
-  mat.friction = 0.5;
-  mat.rolling_friction = 0.1;
-  m.materials = {mat};
-  m.dt = 1e-8;
-  m.contact.skin = 0.05e-3;
-  return m;
-}
+Model elastic_model() { return test::quartz_model(1e-8, 0.05e-3); }
 
 // E* of two identical spheres: 1/E* = 2 (1 - nu^2)/E.
 double e_star(const Material& m) { return m.young / (2.0 * (1.0 - m.poisson * m.poisson)); }

@@ -172,7 +172,8 @@ struct Tracking {
   double eps1 = 0.0;
 };
 
-Tracking shear(Sample s, StressPath path, double b, double p0, double max_strain, bool integral = true) {
+Tracking shear(Sample s, StressPath path, double b, double p0, double max_strain, bool integral = true,
+               double gain = 300.0) {
   ServoSettings& v = s.model.servo;
   v.enabled = true;
   v.path = path;
@@ -182,7 +183,7 @@ Tracking shear(Sample s, StressPath path, double b, double p0, double max_strain
   v.p = p0;
   v.sigma3 = p0;
   v.b = b;
-  v.gain = 300.0 * rate;
+  v.gain = gain * rate;
   v.max_rate = 2.0 * rate;
   v.integral_time = integral ? 1000.0 * s.model.dt : 0.0;
   s.state.cell.rate = Vec3(-rate, 0.0, 0.0);
@@ -231,14 +232,17 @@ TEST_CASE("servo closed loop: constant sigma3 and constant b hold along the path
 }
 
 TEST_CASE("servo closed loop: the integral term removes the lag of the P law") {
-  // While sigma1 climbs, a P law keeps an error ~ (lateral rate)/g; the PI law's mean error must
-  // be smaller. Measured: P mean (p - p0)/p0 and PI mean, printed below; the check is relative
-  // (PI below half of P's mean bias, or both below 0.1 %, i.e. nothing left to remove).
+  // While sigma1 climbs, a P law keeps an error ~ (lateral rate)/g. A low gain (50/s: lateral
+  // rates ~0.5/s give ~1 % of lag) makes that lag clearly measurable; the PI law at the same gain
+  // must remove most of it. Measured values are printed below.
   const double p0 = 1e6;
   const Sample& base = compressed_sample(p0);
-  const Tracking p_law = shear(base, StressPath::constant_p_b, 0.0, p0, 0.03, false);
-  const Tracking pi_law = shear(base, StressPath::constant_p_b, 0.0, p0, 0.03, true);
-  MESSAGE("constant p, b = 0: mean (p - p0)/p0: P ", p_law.mean_p, ", PI ", pi_law.mean_p);
-  CHECK((std::abs(pi_law.mean_p) < 0.5 * std::abs(p_law.mean_p) || std::abs(p_law.mean_p) < 1e-3));
+  const Tracking p_law = shear(base, StressPath::constant_p_b, 0.0, p0, 0.03, false, 50.0);
+  const Tracking pi_law = shear(base, StressPath::constant_p_b, 0.0, p0, 0.03, true, 50.0);
+  MESSAGE("constant p, b = 0, g = 50/s: mean (p - p0)/p0: P ", p_law.mean_p, ", PI ", pi_law.mean_p);
+  REQUIRE(std::abs(p_law.mean_p) > 2e-3);  // the P law lags visibly, or the comparison says nothing
+  // PI below a fifth of the P lag: the integral (T_i = 1000 dt, ~0.1 % of the 3 % run) has
+  // settled long before the end, so only the rows of the first ~1 % strain keep some lag.
+  CHECK(std::abs(pi_law.mean_p) < 0.2 * std::abs(p_law.mean_p));
   CHECK(pi_law.p < 0.02);
 }
