@@ -38,6 +38,7 @@ struct BroadphaseScratch {
   std::vector<Vec3> next_tangential;        // (m,3) history for the list being built
   std::vector<Vec3> next_rolling;           // (m,3) rolling history for the list being built
   double cutoff = 0.0;                      // m, 2 r_max + skin of the last build
+  double r_min = 0.0;                       // m, smallest radius (0: not yet known)
   std::uint64_t builds = 0;                 // neighbour-list builds so far
   std::string error;                        // set when the scene cannot be continued; checked by World
 };

@@ -94,13 +94,27 @@ void validate(const Model& model, const State& state) {
     throw std::invalid_argument("contact.rolling_damping = " + std::to_string(model.contact.rolling_damping) +
                                 ": must be >= 0");
   if (model.servo.enabled) validate(model.servo);
+  for (std::size_t k = 0; k < state.particles.size(); ++k) {
+    const Particles& p = state.particles;
+    const auto fail = [&](const char* what, const std::string& value, const char* allowed) {
+      throw std::invalid_argument("particle " + std::to_string(p.id[k]) + ": " + what + " = " + value + ": " + allowed);
+    };
+    const auto vec = [](const Vec3& v) {
+      return "(" + std::to_string(v[0]) + ", " + std::to_string(v[1]) + ", " + std::to_string(v[2]) + ")";
+    };
+    if (!(p.radius[k] > 0.0) || !std::isfinite(p.radius[k]))
+      fail("radius", std::to_string(p.radius[k]), "must be a finite value > 0 m");
+    if (!p.position[k].allFinite()) fail("position", vec(p.position[k]), "must be finite");
+    if (!p.velocity[k].allFinite()) fail("velocity", vec(p.velocity[k]), "must be finite");
+    if (!p.angular_velocity[k].allFinite()) fail("angular velocity", vec(p.angular_velocity[k]), "must be finite");
+  }
   for (std::size_t k = 0; k < state.particles.size(); ++k)
     if (state.particles.material[k] >= model.materials.size())
       throw std::invalid_argument("particle " + std::to_string(state.particles.id[k]) + ": material index " +
                                   std::to_string(state.particles.material[k]) + " not in [0, " +
                                   std::to_string(model.materials.size()) + ")");
   for (int a = 0; a < 3; ++a)
-    if (!(state.cell.length[a] > 0.0))
+    if (!(state.cell.length[a] > 0.0) || !std::isfinite(state.cell.length[a]))
       throw std::invalid_argument("cell length " + std::to_string(a) + " = " + std::to_string(state.cell.length[a]) +
                                   ": must be > 0 m");
 }

@@ -4,12 +4,17 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <numeric>
 #include <string>
 
 namespace sandcell {
 
 namespace {
+
+constexpr const char* k_unstable_advice =
+    "the run went unstable (a time step above the stability limit, or loading too fast for the stiffness); "
+    "lower dt (time.dt_fraction) or the loading rate";
 
 struct Candidate {
   ParticleId id_j;
@@ -77,6 +82,21 @@ void build_neighbor_list(const Model& model, State& state, Scratch& scratch, Exe
 
   const std::size_t n = x.size();
   const double skin = model.contact.skin;
+  // A run gone unstable shows here first as a non-finite position (the rebuild test sends every
+  // such step to a build): stop with the particle rather than bin NaNs.
+  for (std::size_t k = 0; k < n; ++k)
+    if (!x[k].allFinite()) {
+      bp.error = "particle id " + std::to_string(id[k]) + ": position (" + std::to_string(x[k][0]) + ", " +
+                 std::to_string(x[k][1]) + ", " + std::to_string(x[k][2]) + ") m is not finite: " + k_unstable_advice;
+      return;
+    }
+
+  if (!cell.length.allFinite()) {
+    bp.error = "cell lengths (" + std::to_string(cell.length[0]) + ", " + std::to_string(cell.length[1]) + ", " +
+               std::to_string(cell.length[2]) + ") m are not finite: the servo went unstable (a stress that is not "
+               "finite, or a gain too high for the time step)";
+    return;
+  }
   const double r_max = n == 0 ? 0.0 : *std::max_element(radius.begin(), radius.end());
   const double cutoff = 2.0 * r_max + skin;
   const Vec3 length = cell.length;
@@ -208,6 +228,7 @@ void build_neighbor_list(const Model& model, State& state, Scratch& scratch, Exe
 
   rebuild_gather_index(pairs, n, gather);
   bp.cutoff = cutoff;
+  bp.r_min = n == 0 ? 0.0 : *std::min_element(radius.begin(), radius.end());
   ++bp.builds;
 }
 
@@ -235,9 +256,10 @@ void Broadphase::run(const Model& model, State& state, Scratch& scratch, Executo
 
   bool rebuild = pairs.reference_length.minCoeff() <= 0.0 || reference.size() != x.size();
   if (!rebuild) {
-    if (bp.cutoff <= 0.0) {  // e.g. after a restart: scratch is not checkpointed
+    if (bp.cutoff <= 0.0 || bp.r_min <= 0.0) {  // e.g. after a restart: scratch is not checkpointed
       const auto& radius = state.read<Component::particle_radius>();
       bp.cutoff = 2.0 * *std::max_element(radius.begin(), radius.end()) + model.contact.skin;
+      bp.r_min = *std::min_element(radius.begin(), radius.end());
     }
     const Vec3 length = cell.length;
     const Vec3 inv_length = length.cwiseInverse();
@@ -250,13 +272,45 @@ void Broadphase::run(const Model& model, State& state, Scratch& scratch, Executo
           double worst = 0.0;
           for (std::size_t k = b; k < e; ++k) {
             const Vec3 ds = x[k].cwiseProduct(inv_length) - reference[k].cwiseProduct(inv_ref);
-            worst = std::max(worst, ds.cwiseProduct(length).squaredNorm());
+            const double d = ds.cwiseProduct(length).squaredNorm();
+            // A non-finite displacement (a run gone unstable) forces a build, which names it.
+            if (!(d <= worst)) worst = d == d ? d : std::numeric_limits<double>::infinity();
           }
           return worst;
         },
         [](double a, double b) { return std::max(a, b); });
     const double stretch = (length.cwiseProduct(inv_ref) - Vec3::Ones()).cwiseAbs().maxCoeff();
-    rebuild = 2.0 * std::sqrt(d2) + stretch * bp.cutoff > model.contact.skin;
+    rebuild = !(2.0 * std::sqrt(d2) + stretch * bp.cutoff <= model.contact.skin);
+    // The last step passed the test, so every particle had moved at most skin/2 since the build:
+    // beyond skin/2 + r_min now, one moved farther than the smallest radius in this one step and
+    // may have passed through a contact unseen. That, or a non-finite position, is a run gone
+    // unstable: stop with the particle.
+    const double limit = 0.5 * model.contact.skin + bp.r_min;
+    if (!(d2 <= limit * limit)) {
+      std::size_t worst = 0;
+      double worst_d = -1.0;
+      for (std::size_t k = 0; k < x.size(); ++k) {
+        const Vec3 d = (x[k].cwiseProduct(inv_length) - reference[k].cwiseProduct(inv_ref)).cwiseProduct(length);
+        if (!d.allFinite() || !x[k].allFinite()) {
+          worst = k;
+          worst_d = std::numeric_limits<double>::infinity();
+          break;
+        }
+        if (d.norm() > worst_d) worst_d = d.norm(), worst = k;
+      }
+      const auto& id = state.read<Component::particle_id>();
+      if (!std::isfinite(worst_d))
+        bp.error = "particle id " + std::to_string(id[worst]) + ": position (" + std::to_string(x[worst][0]) + ", " +
+                   std::to_string(x[worst][1]) + ", " + std::to_string(x[worst][2]) + ") m is not finite: " +
+                   k_unstable_advice;
+      else
+        bp.error = "particle id " + std::to_string(id[worst]) + ": moved " + std::to_string(worst_d) +
+                   " m since the neighbour list build, more than skin/2 + r_min = " + std::to_string(limit) +
+                   " m: in one step it went farther than the smallest radius (speed " +
+                   std::to_string((worst_d - 0.5 * model.contact.skin) / model.dt) + " m/s or more): " +
+                   k_unstable_advice;
+      return;
+    }
   }
   if (rebuild) build_neighbor_list(model, state, scratch, exec);
 }

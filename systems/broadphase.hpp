@@ -19,6 +19,10 @@
 // particle with the smaller id, and sorted by (i, id_j, image) per particle i: a canonical order
 // that does not depend on the thread count. History of a pair (id_i, id_j, image) present in the
 // old list is copied; new pairs start with zero history.
+// Instability: a displacement since the build beyond skin/2 + r_min means some particle moved
+// farther than the smallest radius in the last step (the step before passed the test), so contacts
+// may have been passed through; a non-finite position is worse. Either sets
+// scratch.broadphase.error naming the particle (World stops with it): never a NaN silently stepped.
 // The cell must be wider than 2 r_max + skin on every axis: otherwise a particle could meet its
 // own image; the system then sets scratch.broadphase.error and World stops with that message.
 #include "engine/system.hpp"

@@ -2,6 +2,8 @@
 
 #include "systems/integrate.hpp"
 
+#include <cmath>
+
 namespace sandcell {
 
 void wrap_positions(Vec3* x, const Vec3& length, std::size_t b, std::size_t e) {
@@ -9,6 +11,11 @@ void wrap_positions(Vec3* x, const Vec3& length, std::size_t b, std::size_t e) {
     for (int a = 0; a < 3; ++a) {
       if (x[k][a] >= length[a]) x[k][a] -= length[a];
       else if (x[k][a] < 0.0) x[k][a] += length[a];
+      else continue;
+      if (!(x[k][a] >= 0.0 && x[k][a] < length[a])) {  // more than one length out (a free fast flight)
+        x[k][a] -= length[a] * std::floor(x[k][a] / length[a]);
+        if (x[k][a] >= length[a]) x[k][a] = 0.0;  // -tiny + L rounded up to L
+      }
     }
 }
 

@@ -159,6 +159,35 @@ TEST_CASE("the pair list equals an all-images O(N^2) search, down to cells 1.05 
   CHECK(multi_image > 0);  // the narrow cells did exercise pairs touching through two images
 }
 
+TEST_CASE("radius ratio 10:1: the pair list still equals the all-images search (bins sized by r_max hold many small spheres)") {
+  const double r_min = 0.1e-3, r_max = 1e-3, skin = 0.05e-3;
+  const double cut = 2.0 * r_max + skin;
+  const Model model = default_model(1e-7, skin);
+  std::uint64_t seed = 900;
+  std::size_t pairs_seen = 0, small_small = 0;
+  for (const Vec3& shape : {Vec3(1.05, 1.05, 1.05), Vec3(3.3, 2.2, 5.1), Vec3(6.0, 6.0, 6.0)}) {
+    const Vec3 box = shape * cut;
+    // Radii uniform in [0.1, 1] mm: mean volume 4/3 pi <r^3> = 4/3 pi (1e-12 - 1e-16) / (4 * 0.9e-3);
+    // 0.35 solid fraction.
+    const double mean_volume = 4.0 / 3.0 * 3.14159 * (std::pow(r_max, 4) - std::pow(r_min, 4)) / (4.0 * (r_max - r_min));
+    const auto n = std::max<std::size_t>(3, static_cast<std::size_t>(0.35 * box.prod() / mean_volume));
+    for (int rep = 0; rep < 3; ++rep) {
+      const State s = random_spheres(model, n, box, r_min, r_max, ++seed);
+      INFO("cell " << box.transpose() << " m, " << n << " spheres, seed " << seed);
+      World world(model, s, contact_systems(), ExecutorConfig{Backend::tbb, 2});
+      const BruteForce brute = all_images(world.state(), skin);
+      check_same_pairs(listed(world.state()), brute);
+      pairs_seen += brute.pairs.size();
+      const auto& radius = world.state().particles.radius;
+      const auto& index = world.state().contacts.pairs;
+      for (std::size_t k = 0; k < index.size(); ++k)
+        if (radius[index.i[k]] < 0.3e-3 && radius[index.j[k]] < 0.3e-3) ++small_small;
+    }
+  }
+  MESSAGE(pairs_seen << " pairs compared, " << small_small << " between two spheres under 0.3 mm");
+  CHECK(small_small > 0);  // the small end of the distribution was exercised
+}
+
 TEST_CASE("a pair touching through two images gets two contacts, with the force of each") {
   // Cell 1.05 x (2 r_max + skin) along x: two spheres of radius R at distance L/2 along x overlap
   // both directly (image 0) and through the boundary (image -1): 2R > L/2 on both sides.

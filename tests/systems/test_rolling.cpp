@@ -28,13 +28,13 @@ constexpr double k_delta = 1e-6;   // m, overlap held
 constexpr double k_mu_r = 0.1;     // rolling friction
 constexpr double k_eps = std::numeric_limits<double>::epsilon();
 
-Model rolling_model(RollingModel rolling, double dt, double eta_r = 0.0) {
+Model rolling_model(RollingModel rolling, double dt, double eta_r = 0.0, double mu_r = k_mu_r) {
   Model m;
   m.dt = dt;
   Material mat;  // E = 70 GPa, nu = 0.3, rho = 2650
   mat.restitution = 1.0;  // no normal dashpot: F_n = k_n delta exactly
   mat.friction = 0.5;
-  mat.rolling_friction = k_mu_r;
+  mat.rolling_friction = mu_r;
   m.materials.push_back(mat);
   m.contact.rolling = rolling;
   m.contact.rolling_damping = eta_r;
@@ -91,12 +91,17 @@ double torque_z(const World& world) {
 }  // namespace
 
 TEST_CASE("epsd2: the rolling torque grows as k_r theta, k_r = k_t R*^2, holds at mu_r R* F_n and unloads with k_r") {
+ // mu_r = 0.1 (the study's), and the extreme 1 (a cap of R* F_n, reached 10x later).
+ for (const double mu_r : {k_mu_r, 1.0}) {
+  CAPTURE(mu_r);
   const double w = 1.0, dt = 1e-7;  // theta grows by 2 w dt = 2e-7 rad per step
-  const Model model = rolling_model(RollingModel::epsd2, dt);
+  const Model model = rolling_model(RollingModel::epsd2, dt, 0.0, mu_r);
   Setup s = held_pair(model, w);
   const double k_r = s.k_t * s.r_star * s.r_star;
-  const double cap = k_mu_r * s.r_star * s.f_n;
-  // Cap reached at theta = mu_r F_n / (k_t R*) = mu_r (E* / 6 G*) delta / R* = 1.6e-4 rad: 810 steps.
+  const double cap = mu_r * s.r_star * s.f_n;
+  const int scale = static_cast<int>(std::lround(mu_r / k_mu_r));  // steps to the cap scale with mu_r
+  // Cap reached at theta = mu_r F_n / (k_t R*) = mu_r (E* / 6 G*) delta / R* = 1.6e-4 rad (mu_r
+  // 0.1): 810 steps; 8100 at mu_r = 1.
   World world(model, s.state, contact_systems(), ExecutorConfig{Backend::tbb, 2});
   CHECK(world.state().contacts.has_rolling);
   CHECK(torque_z(world) == 0.0);  // setup does not advance the history
@@ -107,7 +112,7 @@ TEST_CASE("epsd2: the rolling torque grows as k_r theta, k_r = k_t R*^2, holds a
   CHECK(world.state().contacts.rolling[0].z() == doctest::Approx(k_r * 2.0 * w * n1 * dt).epsilon(4.0 * n1 * k_eps));
   // The normal force is untouched by rolling.
   CHECK(world.state().contacts.forces.force[0].x() == doctest::Approx(-s.f_n).epsilon(1e-13));
-  world.step(700);  // theta = 2e-4 rad: past the cap
+  world.step(700 * scale + 300 * (scale - 1));  // theta = 2e-4 rad (2e-3 at mu_r = 1): past the cap
   CHECK(torque_z(world) == doctest::Approx(-cap).epsilon(1e-13));
   world.step(500);
   CHECK(torque_z(world) == doctest::Approx(-cap).epsilon(1e-13));  // it holds
@@ -123,6 +128,17 @@ TEST_CASE("epsd2: the rolling torque grows as k_r theta, k_r = k_t R*^2, holds a
   world.state().particles.angular_velocity[1].x() = -3.0;
   world.step(1);
   CHECK(torque_z(world) == doctest::Approx(before + k_r * 2.0 * w * dt).epsilon(4.0 * (n2 + 1) * k_eps));
+ }
+}
+
+TEST_CASE("epsd2 with mu_r = 0: the cap is zero, so no rolling torque ever, only the history is kept") {
+  const Model model = rolling_model(RollingModel::epsd2, 1e-7, 0.0, 0.0);
+  Setup s = held_pair(model, 1.0);
+  World world(model, s.state, contact_systems(), ExecutorConfig{Backend::tbb, 2});
+  for (int k = 0; k < 20; ++k) {
+    world.step(50);
+    CHECK(torque_z(world) == 0.0);
+  }
 }
 
 TEST_CASE("epsd: spring k_r = 2.25 k_n mu_r^2 R*^2 with the same cap, and a dashpot eta_r 2 sqrt(I_r k_r) only below it") {
