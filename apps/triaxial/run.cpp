@@ -743,10 +743,14 @@ void run_parallel(std::size_t n, int workers, Fn&& fn) {
 
 }  // namespace
 
-static int analyze_main(int argc, const char* const* argv, std::ostream& err) {
-  const fs::path script = script_path("analyze.py");
+// `triaxial analyze|study ...`: runs the Python script <command>.py with the remaining arguments;
+// the script's usage lines name "triaxial <command>", and the study finds this binary through
+// SANDCELL_TRIAXIAL.
+static int script_main(const std::string& command, int argc, const char* const* argv, std::ostream& err) {
+  const std::string prog = "triaxial " + command;
+  const fs::path script = script_path(command + ".py");
   if (script.empty()) {
-    err << "triaxial analyze: analyze.py not found (looked in <prefix>/share/sandcell and " << SANDCELL_SCRIPT_DIR << ")\n";
+    err << prog << ": " << command << ".py not found (looked in <prefix>/share/sandcell and " << SANDCELL_SCRIPT_DIR << ")\n";
     return 2;
   }
   const std::string py = python();
@@ -755,17 +759,20 @@ static int analyze_main(int argc, const char* const* argv, std::ostream& err) {
   std::vector<char*> cargs;
   for (std::string& a : args) cargs.push_back(a.data());
   cargs.push_back(nullptr);
+  std::error_code ec;
+  const fs::path self = fs::read_symlink("/proc/self/exe", ec);
   std::cout.flush();
   const pid_t pid = ::fork();
   if (pid < 0) {
-    err << "triaxial analyze: cannot start " << py << '\n';
+    err << prog << ": cannot start " << py << '\n';
     return 1;
   }
   if (pid == 0) {
-    ::setenv("SANDCELL_ANALYZE_PROG", "triaxial analyze", 1);  // its usage lines name this command
+    ::setenv("SANDCELL_ANALYZE_PROG", prog.c_str(), 1);  // its usage lines name this command
+    if (!ec) ::setenv("SANDCELL_TRIAXIAL", self.c_str(), 1);
     ::execvp(cargs[0], cargs.data());
-    std::fprintf(stderr, "triaxial analyze: cannot run %s (needs python3 with numpy, scipy, matplotlib, h5py; set SANDCELL_PYTHON)\n",
-                 cargs[0]);
+    std::fprintf(stderr, "%s: cannot run %s (needs python3 with numpy, scipy, matplotlib, h5py; set SANDCELL_PYTHON)\n",
+                 prog.c_str(), cargs[0]);
     std::_Exit(127);
   }
   int status = 0;
@@ -776,12 +783,16 @@ static int analyze_main(int argc, const char* const* argv, std::ostream& err) {
 
 int triaxial_main(int argc, const char* const* argv, std::ostream& out, std::ostream& err) {
   // `triaxial analyze RESULTS... [--out DIR]`: the critical-state and dilatancy analysis (analyze.py).
-  if (argc >= 2 && std::string(argv[1]) == "analyze") return analyze_main(argc - 1, argv + 1, err);
+  if (argc >= 2 && std::string(argv[1]) == "analyze") return script_main("analyze", argc - 1, argv + 1, err);
+  // `triaxial study CONFIG [--preset quick|full]`: the speed-accuracy study (study.py).
+  if (argc >= 2 && std::string(argv[1]) == "study") return script_main("study", argc - 1, argv + 1, err);
   Options options;
   bool print_default = false;
   CLI::App app{"sandcell triaxial: true triaxial DEM tests in a stress-controlled periodic cell"};
   app.footer("Analysis of results (critical state line, M(theta), dilatancy; report and figures):\n"
-             "  triaxial analyze RESULTS.h5|DIR... [--out DIR]   (triaxial analyze --help for its options)");
+             "  triaxial analyze RESULTS.h5|DIR... [--out DIR]   (triaxial analyze --help for its options)\n"
+             "Speed versus accuracy (timestep, inertial number, stiffness, restitution, N; table and Pareto figure):\n"
+             "  triaxial study [CONFIG] [--preset quick|full] [--out DIR]   (triaxial study --help)");
   app.add_option("config", options.config_path, "TOML configuration (none: the embedded default)");
   app.add_option("--threads", options.threads, "worker threads in all (default: all cores)")->check(CLI::Range(1, 1024));
   app.add_option("--out", options.out, "output directory (default: results/<config name>)");

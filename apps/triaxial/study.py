@@ -1,0 +1,387 @@
+#!/usr/bin/env python3
+"""Speed versus accuracy of a sandcell triaxial test: what each numerical setting costs and buys.
+
+    study.py [CONFIG] [--preset quick|full] [--out DIR] [--threads T] [--triaxial PATH]
+
+Takes the first test of CONFIG (default: the embedded default of `triaxial`; its p0, path and b,
+its material and gradation) as the reference, run at the most accurate setting of every axis, and
+varies one setting at a time from there:
+  dt      time step as a fraction of the Rayleigh time
+  I       inertial number I = eps_dot d50 sqrt(rho / p0) (sets the axial strain rate)
+  E       Young's modulus scaled down (stiffness; the time step follows through the Rayleigh time)
+  e       restitution (the contact damping)
+  N       number of spheres
+  seed    other random samples at the reference setting: the sample-to-sample scatter, i.e. the
+          noise floor below which an error is not resolved at this N
+The dt, I and e variants shear the reference's own prepared sample (copied, then `--resume`), so
+their differences are the shearing numerics alone; E, N and seed variants prepare their own sample.
+
+For every run: peak q/p, residual q/p and void ratio (means over the last --window of axial strain,
+the critical state when the test reached it), the largest dilation rate -d eps_v / d eps_q (slopes
+over 0.01 of axial strain), the mean inertial number after 1 %, the largest overlap / radius, the
+shearing steps, wall seconds and particle-steps per second. Errors are absolute differences from
+the reference. Written into --out: study.md (table, noise floor, recommendation), study.csv,
+study.json, study.png and study.svg (each error against cost, particle-steps per unit axial
+strain, with the Pareto front and the noise floor), and one folder of `triaxial` results per run.
+Runs already complete in --out are reused (the study can be stopped and started again).
+
+Presets (reference first):
+  quick   400 spheres to 12 % axial strain; dt 0.05 | 0.1 0.2 0.35 0.5; I 3e-4 | 1e-3 3e-3 1e-2;
+          E x 1 | 1/10 1/100; e 0.5 | 0.1 0.9; N 400 | 200 800; seeds 2, 3.  ~20 min on 2 cores.
+  full    2000 spheres to 30 %; dt 0.05 | 0.1 0.2 0.35 0.5; I 1e-5 | 1e-4 1e-3 3e-3 1e-2;
+          E x 1 | 1/10 1/100; e 0.5 | 0.1 0.9; N 2000 | 500 1000 5000 20000; seeds 2, 3, 4.
+          The I = 1e-5 reference alone is ~2e8 steps: days on 16 cores. Axes can be narrowed.
+Exit status: 0 done; 2 bad input; 1 a run failed (its log is in <out>/<run>/log.txt).
+"""
+import argparse
+import csv
+import json
+import math
+import os
+import shutil
+import subprocess
+import sys
+import tomllib
+
+PROG = os.environ.get("SANDCELL_ANALYZE_PROG", "study.py")
+
+PRESETS = {
+    "quick": dict(count=400, strain=0.12, dt=[0.05, 0.1, 0.2, 0.35, 0.5], I=[3e-4, 1e-3, 3e-3, 1e-2],
+                  E=[1.0, 0.1, 0.01], e=[0.5, 0.1, 0.9], N=[400, 200, 800], seeds=[2, 3]),
+    # A seconds-long pipeline check (tests/CMakeLists.txt, label analysis): not physics.
+    "smoke": dict(count=120, strain=0.03, dt=[0.2, 0.4], I=[1e-2, 3e-2], E=[1.0, 0.3], e=[0.5, 0.9], N=[120, 160],
+                  seeds=[2]),
+    "full": dict(count=2000, strain=0.3, dt=[0.05, 0.1, 0.2, 0.35, 0.5], I=[1e-5, 1e-4, 1e-3, 3e-3, 1e-2],
+                 E=[1.0, 0.1, 0.01], e=[0.5, 0.1, 0.9], N=[2000, 500, 1000, 5000, 20000], seeds=[2, 3, 4]),
+}
+METRICS = [("peak_eta", "peak q/p"), ("res_eta", "residual q/p"), ("res_e", "residual e"),
+           ("max_dilation", "max -d")]
+
+
+def fail(msg, code=2):
+    print(f"{PROG}: {msg}", file=sys.stderr)
+    sys.exit(code)
+
+
+def toml_value(v):
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, (int, float)):
+        return repr(v)
+    if isinstance(v, str):
+        return json.dumps(v)
+    if isinstance(v, list):
+        return "[" + ", ".join(toml_value(x) for x in v) + "]"
+    raise TypeError(v)
+
+
+def toml_dump(cfg):
+    out = []
+    for table, body in cfg.items():
+        out.append(f"[{table}]")
+        out.extend(f"{k} = {toml_value(v)}" for k, v in body.items())
+        out.append("")
+    return "\n".join(out)
+
+
+def first(v):
+    return v[0] if isinstance(v, list) else v
+
+
+def d50_of(sample):
+    """Median diameter by mass of the configured gradation (what the app's inertial number uses)."""
+    dist = sample.get("distribution", "uniform")
+    if dist == "gradation":
+        pts = sample["gradation"]
+        for (d0, p0), (d1, p1) in zip(pts, pts[1:]):
+            if p0 <= 50.0 <= p1:
+                return d0 + (d1 - d0) * (50.0 - p0) / (p1 - p0) if p1 > p0 else d0
+        fail("sample.gradation does not pass 50 %")
+    d_min, d_max = sample.get("d_min", 5e-3), sample.get("d_max", 7.5e-3)
+    if dist == "mono" or d_max <= d_min:
+        return d_min
+    # uniform by number: mass fraction below d is (d^4 - d_min^4) / (d_max^4 - d_min^4)
+    return ((d_min ** 4 + d_max ** 4) / 2.0) ** 0.25
+
+
+def base_config(path, triaxial):
+    if path:
+        try:
+            with open(path, "rb") as f:
+                cfg = tomllib.load(f)
+        except (OSError, tomllib.TOMLDecodeError) as e:
+            fail(f"{path}: {e}")
+    else:
+        text = subprocess.run([triaxial, "--print-default"], capture_output=True, text=True, check=True).stdout
+        cfg = tomllib.loads(text)
+    if "file" in cfg.get("sample", {}):
+        fail("sample.file: the study varies N and the seed, so it needs a generated sample (count, d_min/d_max or gradation)")
+    return cfg
+
+
+def variant_config(base, preset, ref, **over):
+    """The reference test with some settings replaced."""
+    cfg = json.loads(json.dumps(base))  # deep copy
+    for t in ("sample", "material", "time", "shear", "tests", "output"):
+        cfg.setdefault(t, {})
+    s = dict(ref, **over)
+    tests = cfg["tests"]
+    p0 = float(first(tests.get("p0", 0.5e6)))
+    cfg["tests"] = {"path": first(tests.get("path", "constant_p")), "b": float(first(tests.get("b", 0.5))), "p0": p0}
+    cfg["sample"]["count"] = int(s["N"])
+    cfg["sample"]["seed"] = int(s["seed"])
+    cfg["time"]["dt_fraction"] = float(s["dt"])
+    mat = cfg["material"]
+    young0 = float(base.get("material", {}).get("young", 70e9))
+    mat["young"] = young0 * float(s["E"])
+    mat["restitution"] = float(s["e"])
+    rho = float(mat.get("density", 2650.0))
+    rate = float(s["I"]) / (d50_of(cfg["sample"]) * math.sqrt(rho / p0))
+    cfg["shear"].update(strain_rate=rate, max_axial_strain=preset["strain"], stop_at_critical=False)
+    # About 400 rows per test whatever the step count: the metrics need the curves resolved.
+    cfg["output"].update(plot=False, series_interval=max(1, int(preset["strain"] / (rate * time_step(cfg)) / 400)))
+    return cfg, rate
+
+
+def time_step(cfg):
+    """dt_fraction x the Rayleigh time of the smallest sphere (as the app computes it)."""
+    sample, mat = cfg["sample"], cfg["material"]
+    if sample.get("distribution", "uniform") == "gradation":
+        d_min = sample["gradation"][0][0]
+    else:
+        d_min = sample.get("d_min", 5e-3)
+    young, nu, rho = float(mat.get("young", 70e9)), float(mat.get("poisson", 0.3)), float(mat.get("density", 2650.0))
+    shear = young / (2.0 * (1.0 + nu))
+    return cfg["time"]["dt_fraction"] * math.pi * 0.5 * d_min * math.sqrt(rho / shear) / (0.1631 * nu + 0.8766)
+
+
+def run_variant(name, cfg, args, share_sample_from=None):
+    out = os.path.join(args.out, name)
+    index = os.path.join(out, "index.csv")
+    if os.path.exists(index):
+        rows = list(csv.DictReader(open(index)))
+        if rows and rows[-1]["status"].startswith("done"):
+            return rows[-1], out
+    os.makedirs(out, exist_ok=True)
+    cfg_path = os.path.join(out, "config.toml")
+    with open(cfg_path, "w") as f:
+        f.write(toml_dump(cfg))
+    cmd = [args.triaxial, cfg_path, "--out", out, "--threads", str(args.threads)]
+    if share_sample_from:
+        for fn in os.listdir(share_sample_from):
+            if fn.startswith("sample-") and fn.endswith(".h5") and not os.path.exists(os.path.join(out, fn)):
+                shutil.copy2(os.path.join(share_sample_from, fn), os.path.join(out, fn))
+        cmd.append("--resume")
+    elif any(fn.endswith(".checkpoint.h5") for fn in os.listdir(out)):
+        cmd.append("--resume")
+    else:
+        cmd.append("--overwrite")
+    print(f"{PROG}: {name}: {' '.join(cmd)}", flush=True)
+    with open(os.path.join(out, "log.txt"), "a") as log:
+        rc = subprocess.run(cmd, stdout=log, stderr=subprocess.STDOUT).returncode
+    rows = list(csv.DictReader(open(index))) if os.path.exists(index) else []
+    if rc != 0 or not rows or not rows[-1]["status"].startswith("done"):
+        fail(f"{name}: triaxial exited {rc}; see {os.path.join(out, 'log.txt')}", 1)
+    return rows[-1], out
+
+
+def slope_max_dilation(eps1, eps_v, eps_q, width=0.01, start=0.005):
+    """Largest -d eps_v / d eps_q, slopes by least squares over windows of `width` in eps1."""
+    import numpy as np
+    best = -np.inf
+    grid = np.arange(start + width / 2, eps1[-1] - width / 2, width / 4)
+    for c in grid:
+        sel = (eps1 >= c - width / 2) & (eps1 <= c + width / 2)
+        if sel.sum() < 4:
+            continue
+        dq = np.polyfit(eps1[sel], eps_q[sel], 1)[0]
+        dv = np.polyfit(eps1[sel], eps_v[sel], 1)[0]
+        if dq > 0.1:
+            best = max(best, -dv / dq)
+    return float(best) if np.isfinite(best) else float("nan")
+
+
+def metrics(row, out, window):
+    import h5py
+    import numpy as np
+    with h5py.File(os.path.join(out, row["file"]), "r") as f:
+        s = f["series"]
+        eps1 = np.asarray(s["strain"][:, 0])
+        eta = np.asarray(s["eta"][:])
+        e = np.asarray(s["e"][:])
+        eps_v = np.asarray(s["eps_v"][:])
+        eps_q = np.asarray(s["eps_q"][:])
+        inertial = np.asarray(s["inertial_number"][:])
+        overlap = np.asarray(s["max_overlap_ratio"][:])
+        wall_time = np.asarray(s["wall_time"][:])
+    tail = eps1 >= eps1[-1] - window
+    after = eps1 >= 0.01
+    steps, wall = float(row["steps"]), float(wall_time[-1])
+    return dict(peak_eta=float(eta.max()), peak_strain=float(eps1[eta.argmax()]), res_eta=float(eta[tail].mean()),
+                res_e=float(e[tail].mean()), max_dilation=slope_max_dilation(eps1, eps_v, eps_q),
+                I=float(inertial[after].mean()), max_overlap=float(overlap[after].max()), e0=float(row["e0"]),
+                steps=steps, wall=wall, strain=float(eps1[-1]))
+
+
+def pareto(points):
+    """Indices of the points not dominated in (cost, error), cheapest first."""
+    order = sorted(range(len(points)), key=lambda k: (points[k][0], points[k][1]))
+    front, best = [], math.inf
+    for k in order:
+        if points[k][1] < best:
+            front.append(k)
+            best = points[k][1]
+    return front
+
+
+def main():
+    ap = argparse.ArgumentParser(prog=PROG, description=__doc__.split("\n\n")[0],
+                                 formatter_class=argparse.RawDescriptionHelpFormatter,
+                                 epilog="\n\n".join(__doc__.split("\n\n")[2:]))
+    ap.add_argument("config", nargs="?", help="TOML configuration (default: the embedded default)")
+    ap.add_argument("--preset", choices=sorted(PRESETS), default="quick")
+    ap.add_argument("--out", default=None, help="output folder (default: results/study-<preset>)")
+    ap.add_argument("--threads", type=int, default=2, help="threads of each run (default 2)")
+    ap.add_argument("--axes", default="dt,I,E,e,N,seed", help="axes to vary (default: all)")
+    ap.add_argument("--window", type=float, default=0.03, help="residual window, axial strain (0.03)")
+    ap.add_argument("--triaxial", default=os.environ.get("SANDCELL_TRIAXIAL", "triaxial"),
+                    help="the triaxial binary (default: the one that started the study)")
+    args = ap.parse_args()
+    if args.threads < 1:
+        fail(f"--threads = {args.threads}: must be >= 1")
+    axes = args.axes.split(",")
+    for a in axes:
+        if a not in ("dt", "I", "E", "e", "N", "seed"):
+            fail(f"--axes: unknown axis {a!r}; allowed: dt, I, E, e, N, seed")
+    try:
+        import h5py  # noqa: F401
+        import matplotlib
+        import numpy  # noqa: F401
+    except ImportError as e:
+        fail(f"needs python3 with numpy, matplotlib and h5py ({e})", 1)
+    preset = PRESETS[args.preset]
+    args.window = min(args.window, preset["strain"] / 3.0)
+    args.out = args.out or os.path.join("results", f"study-{args.preset}")
+    base = base_config(args.config, args.triaxial)
+    seed0 = int(base.get("sample", {}).get("seed", 1))
+    ref = dict(dt=preset["dt"][0], I=preset["I"][0], E=preset["E"][0], e=preset["e"][0], N=preset["count"], seed=seed0)
+    if preset["N"][0] != preset["count"]:
+        raise AssertionError("the N axis starts at the reference count")
+
+    plan = [("ref", "ref", {}, False)]
+    if "dt" in axes:
+        plan += [(f"dt_{v:g}", "dt", dict(dt=v), True) for v in preset["dt"][1:]]
+    if "I" in axes:
+        plan += [(f"I_{v:g}", "I", dict(I=v), True) for v in preset["I"][1:]]
+    if "E" in axes:
+        plan += [(f"E_x{v:g}", "E", dict(E=v), False) for v in preset["E"][1:]]
+    if "e" in axes:
+        plan += [(f"e_{v:g}", "e", dict(e=v), True) for v in preset["e"][1:]]
+    if "N" in axes:
+        plan += [(f"N_{v}", "N", dict(N=v), False) for v in preset["N"][1:]]
+    if "seed" in axes:
+        plan += [(f"seed_{v}", "seed", dict(seed=v), False) for v in preset["seeds"]]
+
+    os.makedirs(args.out, exist_ok=True)
+    runs = []
+    ref_out = None
+    for name, axis, over, shares in plan:
+        cfg, rate = variant_config(base, preset, ref, **over)
+        row, out = run_variant(name, cfg, args, share_sample_from=ref_out if shares else None)
+        if name == "ref":
+            ref_out = out
+        m = metrics(row, out, args.window)
+        setting = dict(ref, **over)
+        m.update(name=name, axis=axis, rate=rate, **{f"set_{k}": v for k, v in setting.items()})
+        m["N"] = setting["N"]
+        m["psteps_per_s"] = m["N"] * m["steps"] / m["wall"] if m["wall"] > 0 else float("nan")
+        m["cost"] = m["N"] * m["steps"] / max(m["strain"], 1e-12)  # particle-steps per unit axial strain
+        runs.append(m)
+        print(f"{PROG}: {name}: peak q/p {m['peak_eta']:.4f}, residual q/p {m['res_eta']:.4f}, e {m['res_e']:.4f}, "
+              f"max -d {m['max_dilation']:.3f}, {m['steps']:.0f} steps, {m['wall']:.1f} s", flush=True)
+
+    r0 = runs[0]
+    for m in runs:
+        for key, _ in METRICS:
+            m[f"err_{key}"] = abs(m[key] - r0[key])
+    seeds = [m for m in runs if m["axis"] in ("ref", "seed")]
+    noise = {}
+    for key, _ in METRICS:
+        vals = [m[key] for m in seeds]
+        mean = sum(vals) / len(vals)
+        noise[key] = math.sqrt(sum((v - mean) ** 2 for v in vals) / (len(vals) - 1)) if len(vals) > 1 else float("nan")
+
+    # Recommendation: the cheapest shearing setting (dt, I, e axes share the sample, so their
+    # errors are numerics alone) whose every error is within the sample-to-sample scatter.
+    candidates = [m for m in runs if m["axis"] in ("ref", "dt", "I", "e")]
+    ok = [m for m in candidates if all(not (m[f"err_{k}"] > noise[k]) for k, _ in METRICS)]
+    best = min(ok, key=lambda m: m["cost"]) if ok else None
+
+    fields = ["name", "axis", "set_dt", "set_I", "set_E", "set_e", "set_N", "set_seed", "rate", "e0", "peak_eta",
+              "peak_strain", "res_eta", "res_e", "max_dilation", "I", "max_overlap", "steps", "wall", "psteps_per_s",
+              "cost"] + [f"err_{k}" for k, _ in METRICS]
+    with open(os.path.join(args.out, "study.csv"), "w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=fields, extrasaction="ignore")
+        w.writeheader()
+        w.writerows(runs)
+    with open(os.path.join(args.out, "study.json"), "w") as f:
+        json.dump(dict(preset=args.preset, reference=ref, window=args.window, noise_floor=noise, runs=runs,
+                       recommended=best["name"] if best else None), f, indent=1)
+
+    cmd = f"triaxial study{' ' + args.config if args.config else ''} --preset {args.preset} --threads {args.threads}"
+    lines = [f"# Speed versus accuracy: `{cmd}`", "",
+             f"Reference: {r0['N']} spheres, dt = {ref['dt']} dt_R, I = {ref['I']:g} (axial rate {r0['rate']:.3g} /s), "
+             f"E x {ref['E']:g}, e = {ref['e']}, seed {ref['seed']}; sheared to {preset['strain']} axial strain. "
+             f"Residual values: means over the last {args.window} of axial strain. Errors: |value - reference|. "
+             "dt, I and e variants shear the reference's prepared sample; E, N and seed variants prepare their own.", "",
+             "| run | peak q/p | residual q/p | residual e | max -d | mean I | max overlap/R | steps | wall s | "
+             "M p-steps/s | err peak | err res q/p | err e | err -d |",
+             "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
+    for m in runs:
+        lines.append(f"| {m['name']} | {m['peak_eta']:.4f} | {m['res_eta']:.4f} | {m['res_e']:.4f} | {m['max_dilation']:.3f} | "
+                     f"{m['I']:.2g} | {m['max_overlap']:.3g} | {m['steps']:.0f} | {m['wall']:.1f} | "
+                     f"{m['psteps_per_s'] / 1e6:.2f} | {m['err_peak_eta']:.4f} | {m['err_res_eta']:.4f} | "
+                     f"{m['err_res_e']:.4f} | {m['err_max_dilation']:.3f} |")
+    lines += ["", "Noise floor (standard deviation over the reference and the other seeds, same settings): " +
+              ", ".join(f"{label} {noise[k]:.4f}" for k, label in METRICS) + ".", ""]
+    if best:
+        lines.append(f"Recommended (cheapest shearing setting with every error within the noise floor): **{best['name']}** "
+                     f"(dt = {best['set_dt']} dt_R, I = {best['set_I']:g}, e = {best['set_e']}): "
+                     f"{r0['cost'] / best['cost']:.1f}x cheaper than the reference per unit strain.")
+    else:
+        lines.append("No variant has every error within the noise floor.")
+    with open(os.path.join(args.out, "study.md"), "w") as f:
+        f.write("\n".join(lines) + "\n")
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    fig, axs = plt.subplots(2, 2, figsize=(11, 8.5))
+    colors = dict(ref="k", dt="C0", I="C1", E="C2", e="C3", N="C4", seed="C7")
+    for ax, (key, label) in zip(axs.flat, METRICS):
+        finite = [m for m in runs if math.isfinite(m[f"err_{key}"])]
+        pts = [(m["cost"], m[f"err_{key}"]) for m in finite]
+        for m in finite:
+            ax.scatter(m["cost"], max(m[f"err_{key}"], 1e-5), color=colors[m["axis"]], s=28, zorder=3)
+            ax.annotate(m["name"], (m["cost"], max(m[f"err_{key}"], 1e-5)), fontsize=7, xytext=(3, 3),
+                        textcoords="offset points")
+        front = pareto(pts)
+        ax.plot([pts[k][0] for k in front], [max(pts[k][1], 1e-5) for k in front], "k--", lw=0.8, label="Pareto front")
+        if math.isfinite(noise[key]) and noise[key] > 0:
+            ax.axhline(noise[key], color="0.5", lw=0.8, ls=":", label="noise floor (seeds)")
+        ax.set_xscale("log")
+        ax.set_yscale("log")
+        ax.set_xlabel("cost: particle-steps per unit axial strain")
+        ax.set_ylabel(f"|error| of {label}")
+        ax.grid(True, which="both", alpha=0.3)
+    handles = [plt.Line2D([], [], marker="o", ls="", color=c, label=a) for a, c in colors.items()]
+    axs.flat[0].legend(handles=handles + axs.flat[0].get_legend_handles_labels()[0], fontsize=7)
+    fig.suptitle(f"sandcell speed vs accuracy ({cmd})", fontsize=10)
+    fig.tight_layout()
+    for ext in ("png", "svg"):
+        fig.savefig(os.path.join(args.out, f"study.{ext}"), dpi=110)
+    print(f"{PROG}: wrote {os.path.join(args.out, 'study.md')} (+ csv, json, png, svg)")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

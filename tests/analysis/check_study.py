@@ -1,0 +1,57 @@
+#!/usr/bin/env python3
+"""analysis.study_command: `triaxial study` with the smoke preset writes its table, data and figure,
+and its runs are what it says they are.
+
+    check_study.py TRIAXIAL CONFIG WORKDIR
+"""
+import json
+import os
+import shutil
+import subprocess
+import sys
+
+triaxial, config, work = sys.argv[1:4]
+out = os.path.join(work, "study")
+shutil.rmtree(out, ignore_errors=True)
+r = subprocess.run([triaxial, "study", config, "--preset", "smoke", "--out", out, "--threads", "1"],
+                   capture_output=True, text=True)
+assert r.returncode == 0, f"triaxial study exited {r.returncode}:\n{r.stdout}\n{r.stderr}"
+for f in ("study.md", "study.csv", "study.json", "study.png", "study.svg"):
+    assert os.path.exists(os.path.join(out, f)), f"study did not write {f}"
+data = json.load(open(os.path.join(out, "study.json")))
+runs = {m["name"]: m for m in data["runs"]}
+ref = runs["ref"]
+assert set(runs) == {"ref", "dt_0.4", "I_0.03", "E_x0.3", "e_0.9", "N_160", "seed_2"}, sorted(runs)
+# The reference's errors are zero by definition; every metric is finite.
+for key in ("peak_eta", "res_eta", "res_e", "max_dilation"):
+    assert ref[f"err_{key}"] == 0.0
+    for m in runs.values():
+        assert m[key] == m[key], f"{m['name']}: {key} is NaN"
+# dt, I and e variants shear the reference's own prepared sample: the same e0 bit for bit; the
+# seed and N variants prepare another sample.
+for name in ("dt_0.4", "I_0.03", "e_0.9"):
+    assert runs[name]["e0"] == ref["e0"], (name, runs[name]["e0"], ref["e0"])
+for name in ("seed_2", "N_160"):
+    assert runs[name]["e0"] != ref["e0"], name
+# Steps to the same strain scale as 1 / (rate dt): dt x 2 halves them, I x 3 divides them by 3
+# (within one step of rounding each, and the +1 of the stop test).
+assert abs(runs["dt_0.4"]["steps"] / ref["steps"] - 0.5) < 3.0 / ref["steps"], runs["dt_0.4"]["steps"]
+assert abs(runs["I_0.03"]["steps"] / ref["steps"] - 1.0 / 3.0) < 3.0 / ref["steps"], runs["I_0.03"]["steps"]
+# The measured inertial number follows the set one (it is (eps_dot_1 - eps_dot_3) d50 sqrt(rho/p),
+# so not equal to the set axial value, but 3x the rate is 2-4x the measure).
+ratio = runs["I_0.03"]["I"] / ref["I"]
+assert 2.0 < ratio < 4.0, ratio
+# Softer spheres overlap more: Hertz at the same p gives delta/R ~ (p/E*)^(2/3), x 2.2 for E x 0.3;
+# the largest overlap of a 120-sphere sample is an extreme value, so only 1.3x-3.5x is asserted.
+ratio = runs["E_x0.3"]["max_overlap"] / ref["max_overlap"]
+assert 1.3 < ratio < 3.5, ratio
+md = open(os.path.join(out, "study.md")).read()
+assert "Noise floor" in md and "| ref |" in md
+# A second call reuses every finished run (nothing is re-run).
+r = subprocess.run([triaxial, "study", config, "--preset", "smoke", "--out", out, "--threads", "1"],
+                   capture_output=True, text=True)
+assert r.returncode == 0 and " --out " not in r.stdout, r.stdout
+# Bad input: exit 2 with one line naming the option.
+r = subprocess.run([triaxial, "study", config, "--axes", "dt,bogus", "--out", out], capture_output=True, text=True)
+assert r.returncode == 2 and "bogus" in r.stderr, (r.returncode, r.stderr)
+print("study checks passed")
