@@ -3,6 +3,7 @@
 #include <toml++/toml.h>
 
 #include <cmath>
+#include <numbers>
 #include <cstdio>
 #include <set>
 #include <sstream>
@@ -349,6 +350,23 @@ Config parse_config(const std::string& text, const std::string& source) {
       if (!(p0[k] > 0.0) || !std::isfinite(p0[k])) s.fail("p0[" + std::to_string(k) + "]", num(p0[k]), "must be > 0 Pa");
     for (std::size_t k = 0; k < b.size(); ++k)
       if (!(b[k] >= 0.0 && b[k] <= 1.0)) s.fail("b[" + std::to_string(k) + "]", num(b[k]), "must be in [0, 1]");
+    // Hertz is a small-overlap law. In a dense sample at mean stress p, a contact carries
+    // f = 4 pi R^2 p / (phi Z) (p = phi Z f / (4 pi R^2) for equal spheres), so its overlap is
+    // delta/R = (3 sqrt(2) pi p / (phi Z E*))^(2/3), E* = E / (2 (1 - nu^2)); phi = 0.6, Z = 6.
+    // Beyond 0.1 of the radius (a loaded contact's overlap is a few times the mean) the law and
+    // the measures built on it are meaningless: refuse, naming both keys.
+    {
+      const Material& mat = c.material;
+      const double e_star = mat.young / (2.0 * (1.0 - mat.poisson * mat.poisson));
+      for (std::size_t k = 0; k < p0.size(); ++k) {
+        const double ratio = std::pow(3.0 * std::sqrt(2.0) * std::numbers::pi * p0[k] / (0.6 * 6.0 * e_star), 2.0 / 3.0);
+        if (ratio > 0.1)
+          s.fail("p0[" + std::to_string(k) + "]", num(p0[k]),
+                 "with material.young = " + num(mat.young) + " Pa the mean contact overlap would be ~" + num(std::round(ratio * 100.0) / 100.0) +
+                     " of the radius (Hertz, dense sample), beyond the small-overlap contact law (allowed: < 0.1): "
+                     "raise material.young or lower p0");
+      }
+    }
     std::vector<ShearPath> parsed;
     for (std::size_t k = 0; k < path_names.size(); ++k) {
       const std::string& n = path_names[k];

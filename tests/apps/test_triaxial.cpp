@@ -127,6 +127,9 @@ TEST_CASE("triaxial: each class of bad input exits 2 naming the key, and clobber
       {"cell narrower than 2 r_max + skin", std::string(base).replace(base.find("max_axial_strain = 0.03"), 23, "max_axial_strain = 2.0"),
        "sample.count = 300: the cell would narrow to"},
       {"dt above the stability limit", with("time", "dt_fraction = 1.5"), "time.dt_fraction = 1.5"},
+      // E = 1 MPa at p0 = 0.1 MPa: a mean overlap of ~0.8 R by Hertz (config.cpp).
+      {"overlap beyond the Hertz law", std::string(base).replace(base.find("young = 1.0e9"), 13, "young = 1.0e6"),
+       "tests.p0[0] = 100000: with material.young = 1e+06 Pa the mean contact overlap would be ~0.77"},
       {"bad gradation", with("sample", "distribution = \"gradation\"\ngradation = [[0.005, 0], [0.004, 100]]"),
        "diameters must increase"},
       {"missing packing file", with("sample", "file = \"/nonexistent/packing.txt\""), "sample.file"},
