@@ -96,7 +96,7 @@ void validate(const Model& model, const State& state) {
   if (model.servo.enabled) validate(model.servo);
   for (std::size_t k = 0; k < state.particles.size(); ++k) {
     const Particles& p = state.particles;
-    const auto fail = [&](const char* what, const std::string& value, const char* allowed) {
+    const auto fail = [&](const char* what, const std::string& value, const std::string& allowed) {
       throw std::invalid_argument("particle " + std::to_string(p.id[k]) + ": " + what + " = " + value + ": " + allowed);
     };
     const auto vec = [](const Vec3& v) {
@@ -107,12 +107,10 @@ void validate(const Model& model, const State& state) {
     if (!p.position[k].allFinite()) fail("position", vec(p.position[k]), "must be finite");
     if (!p.velocity[k].allFinite()) fail("velocity", vec(p.velocity[k]), "must be finite");
     if (!p.angular_velocity[k].allFinite()) fail("angular velocity", vec(p.angular_velocity[k]), "must be finite");
+    if (p.material[k] >= model.materials.size())
+      fail("material index", std::to_string(p.material[k]),
+           "not in [0, " + std::to_string(model.materials.size()) + ")");
   }
-  for (std::size_t k = 0; k < state.particles.size(); ++k)
-    if (state.particles.material[k] >= model.materials.size())
-      throw std::invalid_argument("particle " + std::to_string(state.particles.id[k]) + ": material index " +
-                                  std::to_string(state.particles.material[k]) + " not in [0, " +
-                                  std::to_string(model.materials.size()) + ")");
   for (int a = 0; a < 3; ++a)
     if (!(state.cell.length[a] > 0.0) || !std::isfinite(state.cell.length[a]))
       throw std::invalid_argument("cell length " + std::to_string(a) + " = " + std::to_string(state.cell.length[a]) +

@@ -16,6 +16,11 @@ constexpr const char* k_unstable_advice =
     "the run went unstable (a time step above the stability limit, or loading too fast for the stiffness); "
     "lower dt (time.dt_fraction) or the loading rate";
 
+std::string not_finite_message(ParticleId id, const Vec3& x) {
+  return "particle id " + std::to_string(id) + ": position (" + std::to_string(x[0]) + ", " + std::to_string(x[1]) +
+         ", " + std::to_string(x[2]) + ") m is not finite: " + k_unstable_advice;
+}
+
 struct Candidate {
   ParticleId id_j;
   Image image;
@@ -86,8 +91,7 @@ void build_neighbor_list(const Model& model, State& state, Scratch& scratch, Exe
   // such step to a build): stop with the particle rather than bin NaNs.
   for (std::size_t k = 0; k < n; ++k)
     if (!x[k].allFinite()) {
-      bp.error = "particle id " + std::to_string(id[k]) + ": position (" + std::to_string(x[k][0]) + ", " +
-                 std::to_string(x[k][1]) + ", " + std::to_string(x[k][2]) + ") m is not finite: " + k_unstable_advice;
+      bp.error = not_finite_message(id[k], x[k]);
       return;
     }
 
@@ -264,15 +268,17 @@ void Broadphase::run(const Model& model, State& state, Scratch& scratch, Executo
     const Vec3 length = cell.length;
     const Vec3 inv_length = length.cwiseInverse();
     const Vec3 inv_ref = pairs.reference_length.cwiseInverse();
-    // Largest non-affine displacement since the build: the change of reduced coordinates scaled
-    // by the current lengths (positions are continuous between builds: no wrap to undo).
+    // Non-affine displacement since the build: the change of reduced coordinates scaled by the
+    // current lengths (positions are continuous between builds: no wrap to undo).
+    const auto displacement = [&](std::size_t k) {
+      return Vec3((x[k].cwiseProduct(inv_length) - reference[k].cwiseProduct(inv_ref)).cwiseProduct(length));
+    };
     const double d2 = exec.deterministic_reduce(
         x.size(), 4096, 0.0,
         [&](std::size_t b, std::size_t e) {
           double worst = 0.0;
           for (std::size_t k = b; k < e; ++k) {
-            const Vec3 ds = x[k].cwiseProduct(inv_length) - reference[k].cwiseProduct(inv_ref);
-            const double d = ds.cwiseProduct(length).squaredNorm();
+            const double d = displacement(k).squaredNorm();
             // A non-finite displacement (a run gone unstable) forces a build, which names it.
             if (!(d <= worst)) worst = d == d ? d : std::numeric_limits<double>::infinity();
           }
@@ -290,8 +296,8 @@ void Broadphase::run(const Model& model, State& state, Scratch& scratch, Executo
       std::size_t worst = 0;
       double worst_d = -1.0;
       for (std::size_t k = 0; k < x.size(); ++k) {
-        const Vec3 d = (x[k].cwiseProduct(inv_length) - reference[k].cwiseProduct(inv_ref)).cwiseProduct(length);
-        if (!d.allFinite() || !x[k].allFinite()) {
+        const Vec3 d = displacement(k);
+        if (!d.allFinite()) {
           worst = k;
           worst_d = std::numeric_limits<double>::infinity();
           break;
@@ -300,9 +306,7 @@ void Broadphase::run(const Model& model, State& state, Scratch& scratch, Executo
       }
       const auto& id = state.read<Component::particle_id>();
       if (!std::isfinite(worst_d))
-        bp.error = "particle id " + std::to_string(id[worst]) + ": position (" + std::to_string(x[worst][0]) + ", " +
-                   std::to_string(x[worst][1]) + ", " + std::to_string(x[worst][2]) + ") m is not finite: " +
-                   k_unstable_advice;
+        bp.error = not_finite_message(id[worst], x[worst]);
       else
         bp.error = "particle id " + std::to_string(id[worst]) + ": moved " + std::to_string(worst_d) +
                    " m since the neighbour list build, more than skin/2 + r_min = " + std::to_string(limit) +

@@ -67,17 +67,9 @@ void check_same_state(const State& a, const State& b) {
 // A dense frictional packing with rolling resistance in a cell under deformation, so that contact
 // forces, tangential and rolling histories and the cell are all non-trivial.
 Model packing_model() {
-  Model model;
-  model.dt = 1e-7;
-  Material mat;
-  mat.restitution = 0.5;
-  mat.friction = 0.5;
-  mat.rolling_friction = 0.1;
-  model.materials.push_back(mat);
-  model.contact.rolling = RollingModel::epsd2;
   // A thin skin (20 um against ~1 m/s x 1e-7 s per step), so that the neighbour list is rebuilt
   // every few tens of steps early on and a continued run crosses rebuilds.
-  model.contact.skin = 0.02e-3;
+  Model model = test::quartz_model(1e-7, 0.02e-3);
   return model;
 }
 

@@ -42,14 +42,7 @@ struct CompensatedSum {
 }  // namespace
 
 TEST_CASE("Newton's third law and the angular momentum balance hold for every contact of a dense sheared packing") {
-  Model model;
-  model.dt = 1e-7;
-  Material mat;  // E = 70 GPa, nu = 0.3, rho = 2650
-  mat.restitution = 0.5;
-  mat.friction = 0.5;
-  mat.rolling_friction = 0.1;
-  model.materials.push_back(mat);
-  model.contact.rolling = RollingModel::epsd2;
+  Model model = test::quartz_model(1e-7, 0.3e-3);  // epsd2 rolling, history tangential law
   // 512 spheres, radii 1.00-1.03 mm on a 2 mm lattice (neighbours overlap by up to 0.08 mm), random
   // velocities and spins, in a cell sheared at constant volume rate (affine term in v_rel).
   State s = test::jittered_lattice(model, 8, 2e-3, 1.00e-3, 1.03e-3, 0.01e-3, 0.5, 300.0, 21);
@@ -240,13 +233,7 @@ TEST_CASE("dense frictional packing with rolling, 500 steps: bitwise identical f
                             {"history + cdt", TangentialModel::history, RollingModel::cdt, 0.0, 12, 0}};
   for (const Config& c : configs) {
     INFO(c.name);
-    Model model;
-    model.dt = 1e-7;
-    Material mat;
-    mat.restitution = 0.5;
-    mat.friction = 0.5;
-    mat.rolling_friction = 0.1;
-    model.materials.push_back(mat);
+    Model model = test::quartz_model(1e-7, 0.3e-3);
     model.contact.tangential = c.tangential;
     model.contact.rolling = c.rolling;
     model.contact.rolling_damping = c.eta_r;

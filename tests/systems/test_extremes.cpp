@@ -21,17 +21,14 @@ using namespace sandcell;
 
 namespace {
 
-// An elastic, frictionless material without rolling resistance (E = 70 GPa, nu = 0.3, rho = 2650).
+// The quartz-like material (E = 70 GPa, nu = 0.3, rho = 2650), made elastic and frictionless,
+// without rolling resistance.
 Model elastic_model(double dt) {
-  Model m;
-  Material mat;
-  mat.restitution = 1.0;
-  mat.friction = 0.0;
-  mat.rolling_friction = 0.0;
-  m.materials = {mat};
-  m.dt = dt;
+  Model m = test::quartz_model(dt, 0.05e-3);
+  m.materials[0].restitution = 1.0;
+  m.materials[0].friction = 0.0;
+  m.materials[0].rolling_friction = 0.0;
   m.contact.rolling = RollingModel::none;
-  m.contact.skin = 0.05e-3;
   return m;
 }
 
