@@ -94,6 +94,7 @@ struct Plan {
   Packing packing;           // from sample.file, or generated per test (same seed: same cloud)
   bool from_file = false;
   double r_min = 0.0, r_max = 0.0;
+  double servo_time = 0.0;   // s, the servo's time unit: max(dt, 0.2 Rayleigh time), see derived_gain
   Model base;                // dt, material, contact settings of the shear stage
   std::vector<double> p0;    // distinct preparation stresses, in config order
   int job_threads = 1;
@@ -252,22 +253,28 @@ void save(const fs::path& path, const State& state, CheckpointExtra extra, Timer
 // ---- models -------------------------------------------------------------------------------------
 
 // Servo gain derived from the physics when the config leaves it 0. A strain increment changes the
-// stress through the packing's stiffness K ~ p (E*/p)^(2/3) (Hertzian contacts), so one servo step
-// changes the normalized error by about c g dt (E*/p)^(2/3), c of order 10 for the affine response.
-// g = alpha (p/E*)^(2/3) / dt keeps that loop gain at c alpha whatever the material, pressure and
-// dt. Measured (every step sampled, 300 soft spheres sheared at 10/s, constant p, b = 0): alpha =
-// 0.25 and 0.2 oscillate with period 2 steps (p alternating +-10 %), 0.1 does not. A P law lags a
-// moving target by err ~ rate / g (2 % there); the integral term removes it: with T_i = 1000 dt
-// the rms |p - p0|/p0 after 1 % strain fell from 2.0 % to 0.4 % (T_i = 200 dt: 0.1 %, closer to
-// the slow modes of large samples). Preparation (a fixed target from rest through jamming) keeps
-// the P law with alpha = 0.05.
+// stress through the packing's stiffness K ~ p (E*/p)^(2/3) (Hertzian contacts), so a servo acting
+// for a time t changes the normalized error by about c g t (E*/p)^(2/3), c of order 10 for the
+// affine response. g = alpha (p/E*)^(2/3) / t_s keeps that loop gain at c alpha whatever the
+// material and pressure. The time unit t_s is physical, 0.2 Rayleigh times (the default dt), so
+// the servo's response in time does not change with time.dt_fraction: a gain per step (t_s = dt,
+// as before) made a 4x smaller dt a 4x stiffer servo against the same inertia of the sample, and
+// the preparation of 400 spheres at dt_fraction 0.05 hovered at 2.8 % stress error for 5e6 steps.
+// Above 0.2 t_R, t_s = dt bounds the loop gain per step, which must stay below the period-2
+// limit: measured (every step sampled, 300 soft spheres sheared at 10/s, constant p, b = 0,
+// dt = 0.2 t_R) alpha = 0.25 and 0.2 oscillate with period 2 steps (p alternating +-10 %), 0.1 does
+// not. A P law lags a moving target by err ~ rate / g (2 % there); the integral term removes it:
+// with T_i = 1000 t_s the rms |p - p0|/p0 after 1 % strain fell from 2.0 % to 0.4 % (T_i = 200 t_s:
+// 0.1 %, closer to the slow modes of large samples). Preparation (a fixed target from rest through
+// jamming) keeps the P law with alpha = 0.05. Every dt_fraction = 0.2 config runs bitwise as before.
 constexpr double k_shear_alpha = 0.1;
-constexpr double k_integral_steps = 1000.0;
+constexpr double k_integral_units = 1000.0;
+constexpr double k_servo_time_fraction = 0.2;  // t_s / t_Rayleigh, floor of the servo time unit
 
-double derived_gain(double alpha, double p, const Model& m) {
+double derived_gain(double alpha, double p, const Model& m, double servo_time) {
   const Material& mat = m.materials[0];
   const double e_star = mat.young / (2.0 * (1.0 - mat.poisson * mat.poisson));
-  return alpha * std::pow(p / e_star, 2.0 / 3.0) / m.dt;
+  return alpha * std::pow(p / e_star, 2.0 / 3.0) / servo_time;
 }
 
 Model prepare_model(const Plan& plan, double p0) {
@@ -280,7 +287,7 @@ Model prepare_model(const Plan& plan, double p0) {
   s.control = {AxisControl::stress, AxisControl::stress, AxisControl::stress};
   s.p = p0;
   s.max_rate = plan.config.prepare.max_rate;
-  s.gain = plan.config.prepare.gain > 0.0 ? plan.config.prepare.gain : derived_gain(0.05, p0, m);
+  s.gain = plan.config.prepare.gain > 0.0 ? plan.config.prepare.gain : derived_gain(0.05, p0, m, plan.servo_time);
   s.interval = 1;
   return m;
 }
@@ -298,8 +305,8 @@ Model shear_model(const Plan& plan, const TestSpec& test) {
   s.sigma3 = test.p0;
   s.b = test.b;
   s.max_rate = h.max_rate;
-  s.gain = h.gain > 0.0 ? h.gain : derived_gain(k_shear_alpha, test.p0, m);
-  s.integral_time = h.integral_time > 0.0 ? h.integral_time : k_integral_steps * m.dt;
+  s.gain = h.gain > 0.0 ? h.gain : derived_gain(k_shear_alpha, test.p0, m, plan.servo_time);
+  s.integral_time = h.integral_time > 0.0 ? h.integral_time : k_integral_units * plan.servo_time;
   s.interval = h.servo_interval;
   return m;
 }
@@ -656,6 +663,7 @@ Plan make_plan(Config config_in, const Options& options) {
   m.contact = config.contact;
   if (m.contact.skin == 0.0) m.contact.skin = 0.2 * plan.r_min;  // 0.1 x the smallest diameter
   m.dt = config.dt_fraction * rayleigh_time(plan.r_min, config.material);
+  plan.servo_time = std::max(m.dt, k_servo_time_fraction * rayleigh_time(plan.r_min, config.material));
 
   // The cell must stay wider than 2 r_max + skin through the test: at a dense random packing
   // (solid fraction <= 0.64) after preparation, then shortened by the axial strain.
