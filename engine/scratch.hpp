@@ -10,6 +10,7 @@
 
 #include <cstdint>
 #include <string>
+#include <array>
 #include <vector>
 
 namespace sandcell {
@@ -34,6 +35,7 @@ struct BroadphaseScratch {
   std::vector<std::uint32_t> start;         // (n+1) -, prefix sum of count
   std::vector<std::uint32_t> old_start;     // (n+1) -, ranges of old_order per particle i
   std::vector<std::uint32_t> old_order;     // (m_old) -, previous list's pair indices grouped by i
+  std::vector<std::array<int, 3>> shift;    // (n) -, cell lengths the last wrap subtracted from each position
   ContactPairs next_pairs;                  // the list being built, swapped with the State's
   std::vector<Vec3> next_tangential;        // (m,3) history for the list being built
   std::vector<Vec3> next_rolling;           // (m,3) rolling history for the list being built

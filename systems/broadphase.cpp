@@ -115,8 +115,10 @@ void build_neighbor_list(const Model& model, State& state, Scratch& scratch, Exe
   }
 
   // Positions into the cell: between builds they drift continuously (the images stored with the
-  // pairs depend on it); a new list is made from wrapped positions.
-  wrap_positions(position.data(), length, 0, n);
+  // pairs depend on it); a new list is made from wrapped positions. The shifts are kept: a pair
+  // whose sphere was wrapped keeps its contact under another image (old image - s_i + s_j).
+  bp.shift.resize(n);
+  wrap_positions(position.data(), length, 0, n, bp.shift.data());
 
   // Bin the particles (counting sort, stable in particle index: deterministic).
   Bins bins;
@@ -208,11 +210,19 @@ void build_neighbor_list(const Model& model, State& state, Scratch& scratch, Exe
       for (std::uint32_t c = s0; c < s; ++c) {
         next.id_i[c] = id[i];
         next.i[c] = static_cast<std::uint32_t>(i);
-        // History: the same (id_i, id_j, image) in the old list of i, if any.
+        // History: the same contact (id_i, id_j, image before the wrap) in the old list of i, if
+        // any. With x' = x - s L, r = x_i - x_j - n L = x_i' - x_j' - (n - s_i + s_j) L.
         bp.next_tangential[c].setZero();
         if (has_rolling) bp.next_rolling[c].setZero();
+        const std::array<int, 3>& s_i = bp.shift[i];
+        const std::array<int, 3>& s_j = bp.shift[next.j[c]];
+        const Image& img = next.image[c];
+        const auto same_contact = [&](const Image& old) {
+          return old[0] - s_i[0] + s_j[0] == img[0] && old[1] - s_i[1] + s_j[1] == img[1] &&
+                 old[2] - s_i[2] + s_j[2] == img[2];
+        };
         for (std::uint32_t q = bp.old_start[i]; q < bp.old_start[i + 1]; ++q)
-          if (const std::uint32_t o = bp.old_order[q]; pairs.id_j[o] == next.id_j[c] && pairs.image[o] == next.image[c]) {
+          if (const std::uint32_t o = bp.old_order[q]; pairs.id_j[o] == next.id_j[c] && same_contact(pairs.image[o])) {
             bp.next_tangential[c] = tangential[o];
             if (has_rolling) bp.next_rolling[c] = rolling[o];
             break;

@@ -6,16 +6,27 @@
 
 namespace sandcell {
 
-void wrap_positions(Vec3* x, const Vec3& length, std::size_t b, std::size_t e) {
+void wrap_positions(Vec3* x, const Vec3& length, std::size_t b, std::size_t e, std::array<int, 3>* shift) {
   for (std::size_t k = b; k < e; ++k)
     for (int a = 0; a < 3; ++a) {
-      if (x[k][a] >= length[a]) x[k][a] -= length[a];
-      else if (x[k][a] < 0.0) x[k][a] += length[a];
-      else continue;
-      if (!(x[k][a] >= 0.0 && x[k][a] < length[a])) {  // more than one length out (a free fast flight)
-        x[k][a] -= length[a] * std::floor(x[k][a] / length[a]);
-        if (x[k][a] >= length[a]) x[k][a] = 0.0;  // -tiny + L rounded up to L
+      int s = 0;
+      if (x[k][a] >= length[a]) {
+        x[k][a] -= length[a];
+        s = 1;
+      } else if (x[k][a] < 0.0) {
+        x[k][a] += length[a];
+        s = -1;
       }
+      if (s != 0 && !(x[k][a] >= 0.0 && x[k][a] < length[a])) {  // more than one length out (a free fast flight)
+        const double f = std::floor(x[k][a] / length[a]);
+        x[k][a] -= length[a] * f;
+        s += static_cast<int>(f);
+        if (x[k][a] >= length[a]) {  // -tiny + L rounded up to L
+          x[k][a] = 0.0;
+          s += 1;
+        }
+      }
+      if (shift) shift[k - b][a] = s;
     }
 }
 

@@ -5,6 +5,8 @@
 // Reads the cell; writes positions. Per-particle independent: a parallel_for.
 #include "engine/system.hpp"
 
+#include <array>
+
 namespace sandcell {
 
 struct Wrap {
@@ -15,7 +17,9 @@ struct Wrap {
 };
 
 /// Wraps positions [b, e) into [0, L): one subtraction or addition of L per axis, so a particle
-/// that moved less than one cell length per step lands exactly at x -/+ L.
-void wrap_positions(Vec3* x, const Vec3& length, std::size_t b, std::size_t e);
+/// that moved less than one cell length per step lands exactly at x -/+ L. With `shift`, writes
+/// shift[k] = s (indexed from 0 for particle b) such that the new x = old x - s L per axis: what a
+/// pair's periodic image must change by to describe the same branch vector.
+void wrap_positions(Vec3* x, const Vec3& length, std::size_t b, std::size_t e, std::array<int, 3>* shift = nullptr);
 
 }  // namespace sandcell

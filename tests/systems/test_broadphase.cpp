@@ -334,6 +334,62 @@ TEST_CASE("a touching pair keeps its force while one of its spheres crosses face
   }
 }
 
+TEST_CASE("a sliding contact keeps its tangential and rolling history when a list build wraps one of its spheres") {
+  // Two touching spheres drift at 1 m/s along (1,1,1), one of them sliding past the other at
+  // 0.02 m/s; with a 20 nm skin the list is rebuilt every step or two, so the corner sphere is
+  // wrapped across the three faces while touching, and its pair changes image. The same pair run
+  // in the middle of the cell (no wrap) is the reference: the stored tangential displacement and
+  // rolling moment must follow the contact. Tolerance: the two runs differ only in where the
+  // branch vector is differenced (positions ~L apart: an ulp of 16 mm is 3.5e-18 m against a
+  // 1 um overlap and a 2e-10 m tangential displacement per step), so 1e-6 relative is far above
+  // round-off; a history lost at a wrap restarts from zero, an O(1) difference. This test failed
+  // before the fix (the history was matched by the old image alone).
+  const double R = 1e-3, delta0 = 1e-6, dt = 1e-8, L = 16.0 * R;
+  Model model = default_model(dt, 2e-8);
+  model.materials[0].restitution = 1.0;
+  model.materials[0].friction = 0.5;
+  model.contact.rolling = RollingModel::epsd2;
+  const Vec3 axis = Vec3(1.0, 2.0, 2.0) / 3.0;
+  const Vec3 slide = Vec3(2.0, -1.0, 0.0).normalized() * 0.02;  // perpendicular to axis
+  const auto run = [&](const Vec3& corner_x, int& builds, bool& crossed) {
+    State s;
+    s.cell.length = s.cell.length0 = Vec3::Constant(L);
+    add_sphere(s, model, 0, corner_x, R, 0);
+    add_sphere(s, model, 1, corner_x - (2.0 * R - delta0) * axis, R, 0);
+    s.particles.velocity[0] = Vec3(1.0, 1.0, 1.0) + slide;
+    s.particles.velocity[1] = Vec3(1.0, 1.0, 1.0);
+    s.particles.angular_velocity[0] = Vec3(0.0, 0.0, 30.0);  // rolls: builds the rolling moment
+    World world(model, s, ExecutorConfig{Backend::tbb, 2});
+    const std::uint64_t builds0 = world.scratch().broadphase.builds;
+    crossed = false;
+    for (int step = 0; step < 150; ++step) {
+      const double x_before = world.state().particles.position[0][0];
+      world.step();
+      if (world.state().particles.position[0][0] < x_before - 0.5 * L) crossed = true;
+    }
+    builds = static_cast<int>(world.scratch().broadphase.builds - builds0);
+    const State& st = world.state();
+    std::size_t touching = st.contacts.size();
+    for (std::size_t k = 0; k < st.contacts.size(); ++k)
+      if (st.contacts.forces.force[k].squaredNorm() > 0.0) touching = k;
+    REQUIRE(touching < st.contacts.size());
+    return std::pair<Vec3, Vec3>(st.contacts.tangential[touching], st.contacts.rolling[touching]);
+  };
+  int builds_corner = 0, builds_bulk = 0;
+  bool crossed_corner = false, crossed_bulk = false;
+  const auto [u_corner, m_corner] = run(Vec3(L - 0.5e-6, L - 0.3e-6, L - 0.7e-6), builds_corner, crossed_corner);
+  const auto [u_bulk, m_bulk] = run(Vec3(0.5 * L, 0.5 * L, 0.5 * L), builds_bulk, crossed_bulk);
+  MESSAGE("list builds " << builds_corner << " (corner) / " << builds_bulk << " (bulk); |u_t| " << u_corner.norm()
+                         << " / " << u_bulk.norm() << " m; |M_r| " << m_corner.norm() << " / " << m_bulk.norm() << " N m");
+  CHECK(crossed_corner);
+  CHECK(!crossed_bulk);
+  CHECK(builds_corner > 50);  // the wraps happen at list builds, many of them while touching
+  REQUIRE(u_bulk.norm() > 1e-9);  // 150 steps of sliding and rolling: 4.5e-8 m (below the cap)
+  REQUIRE(m_bulk.norm() > 0.0);
+  CHECK((u_corner - u_bulk).norm() <= 1e-6 * u_bulk.norm());
+  CHECK((m_corner - m_bulk).norm() <= 1e-6 * m_bulk.norm());
+}
+
 TEST_CASE("a cell narrower than 2 r_max + skin is a SimulationError naming the width") {
   const double R = 1e-3, skin = 0.3e-3;
   const Model model = default_model(1e-7, skin);
