@@ -411,6 +411,18 @@ Model model_at(Model m, double dt_over_rayleigh) {
 
 constexpr std::uint64_t k_steps = 2000;  // at 0.2 Rayleigh times
 
+// The same scene at dt = 0.2 t_R and at dt/2 over the same physical time (the dt^2 check).
+struct TwoSteps {
+  Run coarse, fine;
+};
+TwoSteps run_at_two_dt(const Model& base, const State& s, const std::string& label) {
+  TwoSteps t{run(model_at(base, 0.2), s, k_steps), run(model_at(base, 0.1), s, 2 * k_steps)};
+  print(label + ", dt = 0.2 t_R", t.coarse);
+  print("dt = 0.1 t_R", t.fine);
+  return t;
+}
+
+
 }  // namespace
 
 TEST_CASE("frictionless elastic packing compressed by the cell: its work is the kinetic plus Hertz energy, up to the trapezoid's defect, second order in dt") {
@@ -420,10 +432,7 @@ TEST_CASE("frictionless elastic packing compressed by the cell: its work is the 
   base.materials[0].rolling_friction = 0.0;
   base.contact.rolling = RollingModel::none;
   const State s = scene(base, 1, 0.0);
-  const Run coarse = run(model_at(base, 0.2), s, k_steps);
-  const Run fine = run(model_at(base, 0.1), s, 2 * k_steps);
-  print("e = 1, mu = 0, dt = 0.2 t_R", coarse);
-  print("dt = 0.1 t_R", fine);
+  const auto [coarse, fine] = run_at_two_dt(base, s, "e = 1, mu = 0");
   for (const Run* r : {&coarse, &fine}) {
     check_cell_work(*r);
     // Nothing dissipates: W_cell = dK* + dE_el + Q, no other line, to round-off. A force that is
@@ -444,10 +453,7 @@ TEST_CASE("frictionless elastic packing compressed by the cell: its work is the 
 TEST_CASE("frictional, damped packing with rolling resistance compressed by the cell: work = kinetic + elastic + dissipated, closed to round-off") {
   Model base = test::quartz_model(1.0, 0.02e-3);  // e = 0.5, mu = 0.5, mu_r = 0.1, epsd2, history law
   const State s = scene(base, 1, 0.0);
-  const Run coarse = run(model_at(base, 0.2), s, k_steps);
-  const Run fine = run(model_at(base, 0.1), s, 2 * k_steps);
-  print("quartz, dt = 0.2 t_R", coarse);
-  print("dt = 0.1 t_R", fine);
+  const auto [coarse, fine] = run_at_two_dt(base, s, "quartz");
   for (const Run* r : {&coarse, &fine}) {
     const Ledger& l = r->l;
     check_cell_work(*r);
