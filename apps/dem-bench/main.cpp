@@ -15,7 +15,9 @@
 // engineering strain rate RATE (1/s), x and y fixed, as LIGGGHTS `fix deform ... erate -RATE`.
 // Prints particles, steps, threads, wall seconds of the step loop, particle-steps per second, mean
 // contacts per particle, neighbour-list builds, peak memory, the final contact stress tensor, and
-// the share of the step loop spent in each system (the engine's own timers).
+// the share of the step loop spent in each system (the engine's own timers), and a digest of the
+// final state (FNV-1a over the bytes of ids, positions, velocities, spins, contact histories and the
+// cell): equal digests mean bitwise equal runs, across thread counts, machines or versions.
 #include "engine/packing.hpp"
 #include "engine/world.hpp"
 #include "systems/stress.hpp"
@@ -24,6 +26,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cstdint>
 #include <cstdio>
 #include <functional>
 #include <vector>
@@ -51,6 +54,33 @@ double parse_number(const char* key, const char* text, double lo, double hi) {
                 std::to_string(hi) + "]");
   return v;
 }
+// FNV-1a, 64 bit, over the raw bytes of the state arrays in array order.
+struct Fnv1a {
+  std::uint64_t h = 0xcbf29ce484222325ull;
+  void bytes(const void* data, std::size_t size) {
+    const auto* b = static_cast<const unsigned char*>(data);
+    for (std::size_t k = 0; k < size; ++k) h = (h ^ b[k]) * 0x100000001b3ull;
+  }
+  template <class T>
+  void array(const std::vector<T>& v) {
+    bytes(v.data(), v.size() * sizeof(T));
+  }
+};
+
+std::uint64_t state_digest(const State& s) {
+  Fnv1a f;
+  f.array(s.particles.id);
+  f.array(s.particles.position);
+  f.array(s.particles.velocity);
+  f.array(s.particles.angular_velocity);
+  f.array(s.contacts.pairs.id_i);
+  f.array(s.contacts.pairs.id_j);
+  f.array(s.contacts.tangential);
+  f.array(s.contacts.rolling);
+  f.bytes(s.cell.length.data(), sizeof(double) * 3);
+  return f.h;
+}
+
 // One variant of the benchmark model for --costs.
 struct Variant {
   const char* name;
@@ -188,17 +218,19 @@ int main(int argc, char** argv) {
   const double rate = wall > 0 ? double(n) * double(steps) / wall : 0.0;
   const std::uint64_t builds = world.scratch().broadphase.builds - builds0;
   const auto& graph = world.graph();
+  const unsigned long long digest = state_digest(world.state());
 
   if (json) {
     std::printf("{\"scene\": \"%s\", \"particles\": %zu, \"steps\": %ld, \"threads\": %d, \"backend\": \"%s\",\n"
                 " \"deform\": %.6g, \"compat\": %s, \"wall_s\": %.6f, \"particle_steps_per_s\": %.6e,\n"
                 " \"contacts_per_particle_start\": %.6f, \"contacts_per_particle\": %.6f, \"rebuilds\": %llu,\n"
                 " \"peak_mib\": %.1f, \"mean_stress_start_pa\": %.6e, \"mean_stress_pa\": %.6e,\n"
-                " \"stress_pa\": [%.6e, %.6e, %.6e, %.6e, %.6e, %.6e], \"lz\": %.9f,\n \"system_s\": {",
+                " \"stress_pa\": [%.6e, %.6e, %.6e, %.6e, %.6e, %.6e], \"lz\": %.9f, \"digest\": \"%016llx\",\n"
+                " \"system_s\": {",
                 scene.c_str(), n, steps, world.executor().threads(), serial ? "serial" : "tbb", deform,
                 model.contact.liggghts_compat ? "true" : "false", wall, rate, 2.0 * c0 / n, 2.0 * c1 / n,
                 static_cast<unsigned long long>(builds), peak_mib, s0.trace() / 3, s1.trace() / 3, s1(0, 0), s1(1, 1),
-                s1(2, 2), s1(0, 1), s1(0, 2), s1(1, 2), world.state().cell.length[2]);
+                s1(2, 2), s1(0, 1), s1(0, 2), s1(1, 2), world.state().cell.length[2], digest);
     for (std::size_t k = 0; k < graph.size(); ++k)
       std::printf("%s\"%s\": %.6f", k ? ", " : "", graph.system(k).name.c_str(), graph.timers()[k]);
     std::printf("}}\n");
@@ -218,6 +250,7 @@ int main(int argc, char** argv) {
               s0.trace() / 3e6, s1.trace() / 3e6);
   std::printf("stress (MPa)     xx %.6g yy %.6g zz %.6g xy %.4g xz %.4g yz %.4g\n", s1(0, 0) / 1e6, s1(1, 1) / 1e6,
               s1(2, 2) / 1e6, s1(0, 1) / 1e6, s1(0, 2) / 1e6, s1(1, 2) / 1e6);
+  std::printf("state digest     %016llx (FNV-1a of the final state; equal digests = bitwise equal runs)\n", digest);
   std::printf("time per system (share of the step loop):\n");
   for (std::size_t k = 0; k < graph.size(); ++k)
     std::printf("  %-18s %8.3f s  %5.1f %%\n", graph.system(k).name.c_str(), graph.timers()[k],
