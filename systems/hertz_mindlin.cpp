@@ -158,6 +158,12 @@ void contact_loop(const Model& model, State& state, Scratch& scratch, Executor& 
         blk.e_star[t] = mat.e_star;
         blk.g_star[t] = mat.g_star;
         blk.damp[t] = -k_two_sqrt_5_6 * mat.beta;
+        // Phase 3 reads these per pair inside a long chain of arithmetic; fetching them here
+        // overlaps their cache misses across the block.
+        __builtin_prefetch(&v[j]);
+        __builtin_prefetch(&w[j]);
+        __builtin_prefetch(&v[i]);
+        __builtin_prefetch(&w[i]);
       }
       // Phase 2: stiffness and damping, branch-free (apart pairs get overlap <= 0, zeros after).
       for (std::size_t t = 0; t < nb; ++t) {
