@@ -124,7 +124,9 @@ Model finalized(Model m) {
 }
 State prepared(State s, const Model& m) {
   validate(m, s);
-  s.contacts.has_rolling = m.contact.enabled && m.contact.rolling != RollingModel::none;
+  // Only the laws with a stored moment keep one (cdt has none).
+  s.contacts.has_rolling = m.contact.enabled &&
+                           (m.contact.rolling == RollingModel::epsd2 || m.contact.rolling == RollingModel::epsd);
   if (!s.contacts.has_rolling) s.contacts.rolling.clear();
   if (s.particles.reference_position.size() != s.particles.size()) s.particles.reference_position.resize(s.particles.size());
   return s;

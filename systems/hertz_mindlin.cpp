@@ -122,7 +122,9 @@ void contact_loop(const Model& model, State& state, Scratch& scratch, Executor& 
   out.force.resize(m);
   out.torque_i.resize(m);
   out.torque_j.resize(m);
-  if constexpr (Roll != RollingModel::none) rolling.resize(m);
+  // cdt has no history: like none, it allocates none.
+  constexpr bool rolling_history = Roll == RollingModel::epsd2 || Roll == RollingModel::epsd;
+  if constexpr (rolling_history) rolling.resize(m);
 
   const Vec3 length = cell.length;
   const Vec3 rate = cell.rate;
@@ -189,7 +191,7 @@ void contact_loop(const Model& model, State& state, Scratch& scratch, Executor& 
           torque_i[k].setZero();
           torque_j[k].setZero();
           hist_t[k].setZero();  // history resets when the contact opens
-          if constexpr (Roll != RollingModel::none) hist_r[k].setZero();
+          if constexpr (rolling_history) hist_r[k].setZero();
           continue;
         }
         const std::uint32_t i = pi[k], j = pj[k];
@@ -211,6 +213,7 @@ void contact_loop(const Model& model, State& state, Scratch& scratch, Executor& 
         Vec3 t_i = -c.c_i * arm_torque;
         Vec3 t_j = -c.c_j * arm_torque;
         if constexpr (Roll != RollingModel::none) {
+          Vec3 no_history = Vec3::Zero();  // cdt: not read, not kept
           double i_r = 0.0;
           if constexpr (Roll == RollingModel::epsd) {
             const double a = mass[i] * radius[i] * radius[i];
@@ -219,7 +222,7 @@ void contact_loop(const Model& model, State& state, Scratch& scratch, Executor& 
           }
           const Vec3 moment = roll.evaluate(RollingInput{c.n, c.w_i - c.w_j, c.overlap, nt.f_n, nt.k_n, nt.k_t,
                                                          c.r_star, i_r, mat.rolling_friction},
-                                            hist_r[k]);
+                                            rolling_history ? hist_r[k] : no_history);
           t_i -= moment;
           t_j += moment;
         }

@@ -11,7 +11,8 @@
 // the normal, the normal force and the stiffness the contact law had just computed (written to and
 // read back from memory per pair) and cost 17 % of a step on the dense-20k benchmark; evaluated in
 // the contact pass it reuses them from registers. With RollingModel::none the contact pass is
-// instantiated without it and the rolling history is never allocated.
+// instantiated without it and the rolling history is never allocated; cdt keeps no history either,
+// so it allocates none.
 #include "engine/model.hpp"
 #include "components/types.hpp"
 

@@ -63,6 +63,14 @@ TEST_CASE("scene: each option adds exactly its system") {
     CHECK(scheduled(world) == contact);
     CHECK(world.state().contacts.rolling.size() == world.state().contacts.size());
   }
+  SUBCASE("rolling resistance cdt: no stored moment, so no rolling history allocated") {
+    model.contact.rolling = RollingModel::cdt;
+    World world(model, dense(model), ExecutorConfig{Backend::serial});
+    world.step(5);
+    CHECK(scheduled(world) == contact);
+    CHECK(world.state().contacts.size() > 0);
+    CHECK(world.state().contacts.rolling.empty());
+  }
   SUBCASE("spatial sorting") {
     model.contact.sort_interval = 10;
     World world(model, dense(model), ExecutorConfig{Backend::serial});
