@@ -145,7 +145,7 @@ Measures measure(const Model& model, const State& state, Executor& exec, const M
       const double h2 = c.tangential[k].squaredNorm();  // u_t (m) or the elastic force F_s (N)
       elastic += model.contact.tangential == TangentialModel::history ? 0.5 * k_t * h2 : 0.5 * h2 / k_t;
     }
-    if (c.has_rolling && k < c.rolling.size() && model.contact.rolling != RollingModel::cdt) {
+    if (c.has_rolling && k < c.rolling.size()) {  // epsd2 or epsd: the laws with a stored moment
       const double k_n = 4.0 / 3.0 * mat.e_star * sqrt_rd;
       const double k_r = model.contact.rolling == RollingModel::epsd2
                              ? k_t * r_star * r_star
