@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <type_traits>
 
 namespace sandcell {
 
@@ -28,11 +29,10 @@ struct NormalTangential {
 
 // Hertz-Mindlin with the LIGGGHTS-form displacement history (u_t, m) or the incremental force
 // history (F_s, N).
-template <TangentialModel Tangential>
+template <TangentialModel Tangential, bool Update>
 struct HertzMindlinEvaluator {
   const PairMaterial& mat;
   double dt;
-  bool update_history;
 
   /// k_n = 4/3 E* sqrt(R* delta), k_t = 8 G* sqrt(R* delta), gamma_n = -2 sqrt(5/6) beta sqrt(S_n m*).
   [[gnu::always_inline]] inline NormalTangential evaluate(const PairKinematics& c, double k_n, double k_t,
@@ -49,7 +49,7 @@ struct HertzMindlinEvaluator {
     if constexpr (Tangential == TangentialModel::history) {
       // u_t += v_t dt, projected on the tangent plane; F_t = -k_t u_t; at the Coulomb cap the
       // force is scaled to mu |F_n| (no damping) and u_t set to -F_t / k_t.
-      if (update_history) h += v_t * dt;
+      if constexpr (Update) h += v_t * dt;
       h -= h.dot(c.n) * c.n;
       f_t = -k_t * h;
       const double f2 = f_t.squaredNorm();
@@ -66,7 +66,7 @@ struct HertzMindlinEvaluator {
       h -= h.dot(c.n) * c.n;
       const double new2 = h.squaredNorm();
       if (new2 > 0.0) h *= std::sqrt(old2 / new2);
-      if (update_history) h -= (k_t * dt) * v_t;
+      if constexpr (Update) h -= (k_t * dt) * v_t;
       const double f2 = h.squaredNorm();
       if (f2 > f_cap * f_cap) {
         h *= f_cap / std::sqrt(f2);
@@ -92,10 +92,12 @@ static_assert(k_contact_grain % k_block == 0, "blocks must not straddle parallel
 struct alignas(64) Block {
   double rx[k_block], ry[k_block], rz[k_block];  // m, branch vector
   double sum_r[k_block];                         // m, R_i + R_j
+  double r_i[k_block], r_j[k_block];             // m
   double r_prod[k_block];                        // m^2, R_i R_j
   double m_prod[k_block], m_sum[k_block];        // kg^2, kg
   double e_star[k_block], g_star[k_block];       // Pa
   double damp[k_block];                          // -, -2 sqrt(5/6) beta
+  const PairMaterial* mat[k_block];
   // Computed in phase 2:
   double inv_dist[k_block];                      // 1/m
   double overlap[k_block];                       // m, <= 0 when apart
@@ -104,8 +106,8 @@ struct alignas(64) Block {
   double gamma_n[k_block];                       // kg/s
 };
 
-template <TangentialModel Tangential, RollingModel Roll, bool Affine>
-void contact_loop(const Model& model, State& state, Scratch& scratch, Executor& exec) {
+template <TangentialModel Tangential, RollingModel Roll, bool Affine, bool Update>
+void contact_loop(const Model& model, State& state, Executor& exec) {
   const ContactPairs& pairs = state.read<Component::contact_pairs>();
   const Vec3* __restrict x = state.read<Component::particle_position>().data();
   const Vec3* __restrict v = state.read<Component::particle_velocity>().data();
@@ -129,7 +131,6 @@ void contact_loop(const Model& model, State& state, Scratch& scratch, Executor& 
   const Vec3 length = cell.length;
   const Vec3 rate = cell.rate;
   const std::size_t n_mat = model.materials.size();
-  const bool update_history = !scratch.setup;
   const std::uint32_t* __restrict pi = pairs.i.data();
   const std::uint32_t* __restrict pj = pairs.j.data();
   const Image* __restrict image = pairs.image.data();
@@ -138,50 +139,76 @@ void contact_loop(const Model& model, State& state, Scratch& scratch, Executor& 
   Vec3* __restrict torque_j = out.torque_j.data();
   Vec3* __restrict hist_t = tangential.data();
   Vec3* __restrict hist_r = rolling.data();
-  const RollingEvaluator<Roll> roll{model.dt, model.contact.rolling_damping, update_history};
+  const RollingEvaluator<Roll, Update> roll{model.dt, model.contact.rolling_damping};
 
-  exec.parallel_for(m, k_contact_grain, [&](std::size_t b, std::size_t e) {
+  const PairMaterial* const pair_mat = model.pairs.data();
+  const double dt = model.dt;
+  const double damp_0 = -k_two_sqrt_5_6 * model.pairs[0].beta;  // one material: the pairs' constant
+  exec.parallel_for(m, k_contact_grain, [=](std::size_t b, std::size_t e) {
+    // The pointers are copied by value into the closure: the pass needs more of them than there
+    // are registers, and a spilled copy reloads with one load instead of two through a reference.
     Block blk;
     for (std::size_t k0 = b; k0 < e; k0 += k_block) {
       const std::size_t nb = std::min(k_block, e - k0);
-      // Phase 1: gather.
-      for (std::size_t t = 0; t < nb; ++t) {
-        const std::size_t k = k0 + t;
-        const std::uint32_t i = pi[k], j = pj[k];
-        const Image img = image[k];
-        blk.rx[t] = x[i][0] - x[j][0] - img[0] * length[0];
-        blk.ry[t] = x[i][1] - x[j][1] - img[1] * length[1];
-        blk.rz[t] = x[i][2] - x[j][2] - img[2] * length[2];
-        blk.sum_r[t] = radius[i] + radius[j];
-        blk.r_prod[t] = radius[i] * radius[j];
-        blk.m_prod[t] = mass[i] * mass[j];
-        blk.m_sum[t] = mass[i] + mass[j];
-        const PairMaterial& mat = n_mat == 1 ? model.pairs[0] : model.pairs[material[i] * n_mat + material[j]];
-        blk.e_star[t] = mat.e_star;
-        blk.g_star[t] = mat.g_star;
-        blk.damp[t] = -k_two_sqrt_5_6 * mat.beta;
-        // Phase 3 reads these per pair inside a long chain of arithmetic; fetching them here
-        // overlaps their cache misses across the block.
-        __builtin_prefetch(&v[j]);
-        __builtin_prefetch(&w[j]);
-        __builtin_prefetch(&v[i]);
-        __builtin_prefetch(&w[i]);
-      }
+      // Phase 1: gather. With one material the pair constants are the same for every pair and
+      // neither loaded nor stored per pair (the common case, compiled as its own loop).
+      auto gather = [&](auto one_material) {
+        for (std::size_t t = 0; t < nb; ++t) {
+          const std::size_t k = k0 + t;
+          const std::uint32_t i = pi[k], j = pj[k];
+          const Image img = image[k];
+          blk.rx[t] = x[i][0] - x[j][0] - img[0] * length[0];
+          blk.ry[t] = x[i][1] - x[j][1] - img[1] * length[1];
+          blk.rz[t] = x[i][2] - x[j][2] - img[2] * length[2];
+          blk.r_i[t] = radius[i];
+          blk.r_j[t] = radius[j];
+          blk.sum_r[t] = radius[i] + radius[j];
+          blk.r_prod[t] = radius[i] * radius[j];
+          blk.m_prod[t] = mass[i] * mass[j];
+          blk.m_sum[t] = mass[i] + mass[j];
+          if constexpr (!decltype(one_material)::value) {
+            const PairMaterial& mat = pair_mat[material[i] * n_mat + material[j]];
+            blk.mat[t] = &mat;
+            blk.e_star[t] = mat.e_star;
+            blk.g_star[t] = mat.g_star;
+            blk.damp[t] = -k_two_sqrt_5_6 * mat.beta;
+          }
+          // Phase 3 reads these per pair inside a long chain of arithmetic; fetching them here
+          // overlaps their cache misses across the block.
+          __builtin_prefetch(&v[j]);
+          __builtin_prefetch(&w[j]);
+          __builtin_prefetch(&v[i]);
+          __builtin_prefetch(&w[i]);
+        }
+      };
       // Phase 2: stiffness and damping, branch-free (apart pairs get overlap <= 0, zeros after).
-      for (std::size_t t = 0; t < nb; ++t) {
-        const double r2 = blk.rx[t] * blk.rx[t] + blk.ry[t] * blk.ry[t] + blk.rz[t] * blk.rz[t];
-        const double dist = std::sqrt(r2);
-        const double overlap = blk.sum_r[t] - dist;
-        const double od = overlap > 0.0 ? overlap : 0.0;
-        blk.inv_dist[t] = 1.0 / dist;
-        blk.overlap[t] = overlap;
-        blk.r_star[t] = blk.r_prod[t] / blk.sum_r[t];
-        const double m_star = blk.m_prod[t] / blk.m_sum[t];
-        const double sqrt_rd = std::sqrt(blk.r_star[t] * od);
-        const double s_n = 2.0 * blk.e_star[t] * sqrt_rd;
-        blk.k_n[t] = (2.0 / 3.0) * s_n;           // 4/3 E* sqrt(R* delta)
-        blk.k_t[t] = 8.0 * blk.g_star[t] * sqrt_rd;  // = S_t
-        blk.gamma_n[t] = blk.damp[t] * std::sqrt(s_n * m_star);
+      auto stiffness = [&](auto one_material) {
+        constexpr bool one = decltype(one_material)::value;
+        for (std::size_t t = 0; t < nb; ++t) {
+          const double e_star = one ? pair_mat[0].e_star : blk.e_star[t];
+          const double g_star = one ? pair_mat[0].g_star : blk.g_star[t];
+          const double damp = one ? damp_0 : blk.damp[t];
+          const double r2 = blk.rx[t] * blk.rx[t] + blk.ry[t] * blk.ry[t] + blk.rz[t] * blk.rz[t];
+          const double dist = std::sqrt(r2);
+          const double overlap = blk.sum_r[t] - dist;
+          const double od = overlap > 0.0 ? overlap : 0.0;
+          blk.inv_dist[t] = 1.0 / dist;
+          blk.overlap[t] = overlap;
+          blk.r_star[t] = blk.r_prod[t] / blk.sum_r[t];
+          const double m_star = blk.m_prod[t] / blk.m_sum[t];
+          const double sqrt_rd = std::sqrt(blk.r_star[t] * od);
+          const double s_n = 2.0 * e_star * sqrt_rd;
+          blk.k_n[t] = (2.0 / 3.0) * s_n;     // 4/3 E* sqrt(R* delta)
+          blk.k_t[t] = 8.0 * g_star * sqrt_rd;  // = S_t
+          blk.gamma_n[t] = damp * std::sqrt(s_n * m_star);
+        }
+      };
+      if (n_mat == 1) {
+        gather(std::true_type{});
+        stiffness(std::true_type{});
+      } else {
+        gather(std::false_type{});
+        stiffness(std::false_type{});
       }
       // Phase 3: tangential and rolling laws, outputs.
       for (std::size_t t = 0; t < nb; ++t) {
@@ -200,14 +227,14 @@ void contact_loop(const Model& model, State& state, Scratch& scratch, Executor& 
         c.n = r * blk.inv_dist[t];
         c.overlap = blk.overlap[t];
         c.r_star = blk.r_star[t];
-        c.c_i = radius[i] - 0.5 * c.overlap;
-        c.c_j = radius[j] - 0.5 * c.overlap;
+        c.c_i = blk.r_i[t] - 0.5 * c.overlap;
+        c.c_j = blk.r_j[t] - 0.5 * c.overlap;
         c.v_rel = v[i] - v[j];
         if constexpr (Affine) c.v_rel += rate.cwiseProduct(r);
         c.w_i = w[i];
         c.w_j = w[j];
-        const PairMaterial& mat = n_mat == 1 ? model.pairs[0] : model.pairs[material[i] * n_mat + material[j]];
-        const HertzMindlinEvaluator<Tangential> law{mat, model.dt, update_history};
+        const PairMaterial& mat = n_mat == 1 ? pair_mat[0] : *blk.mat[t];
+        const HertzMindlinEvaluator<Tangential, Update> law{mat, dt};
         const NormalTangential nt = law.evaluate(c, blk.k_n[t], blk.k_t[t], blk.gamma_n[t], hist_t[k]);
         const Vec3 arm_torque = c.n.cross(nt.f_t);  // torque on i is -c_i n x F_t, on j -c_j n x F_t
         Vec3 t_i = -c.c_i * arm_torque;
@@ -216,8 +243,8 @@ void contact_loop(const Model& model, State& state, Scratch& scratch, Executor& 
           Vec3 no_history = Vec3::Zero();  // cdt: not read, not kept
           double i_r = 0.0;
           if constexpr (Roll == RollingModel::epsd) {
-            const double a = mass[i] * radius[i] * radius[i];
-            const double d = mass[j] * radius[j] * radius[j];
+            const double a = mass[i] * blk.r_i[t] * blk.r_i[t];
+            const double d = mass[j] * blk.r_j[t] * blk.r_j[t];
             i_r = 1.4 * a * d / (a + d);
           }
           const Vec3 moment = roll.evaluate(RollingInput{c.n, c.w_i - c.w_j, c.overlap, nt.f_n, nt.k_n, nt.k_t,
@@ -234,10 +261,18 @@ void contact_loop(const Model& model, State& state, Scratch& scratch, Executor& 
   });
 }
 
+template <TangentialModel T, RollingModel R, bool Affine>
+void dispatch_update(const Model& model, State& state, Scratch& scratch, Executor& exec) {
+  // The setup pass (forces without advancing the history) is rare: the stepping pass is compiled
+  // without the test.
+  if (scratch.setup) contact_loop<T, R, Affine, false>(model, state, exec);
+  else contact_loop<T, R, Affine, true>(model, state, exec);
+}
+
 template <TangentialModel T, RollingModel R>
 void dispatch_affine(const Model& model, State& state, Scratch& scratch, Executor& exec) {
-  if (model.contact.liggghts_compat) contact_loop<T, R, false>(model, state, scratch, exec);
-  else contact_loop<T, R, true>(model, state, scratch, exec);
+  if (model.contact.liggghts_compat) dispatch_update<T, R, false>(model, state, scratch, exec);
+  else dispatch_update<T, R, true>(model, state, scratch, exec);
 }
 
 template <TangentialModel T>

@@ -31,11 +31,11 @@ struct RollingInput {
   double mu_r;        // -, rolling friction
 };
 
-template <RollingModel Kind>
+// Update: whether the stored moment advances (false in the setup pass).
+template <RollingModel Kind, bool Update>
 struct RollingEvaluator {
   double dt;
   double eta_r;
-  bool update_history;
 
   /// Returns the rolling moment M (torque -M on i, +M on j); updates the stored moment.
   [[gnu::always_inline]] inline Vec3 evaluate(const RollingInput& in, Vec3& history) const {
@@ -50,7 +50,7 @@ struct RollingEvaluator {
                                                      : 2.25 * in.k_n * in.mu_r * in.mu_r * in.r_star * in.r_star;
       const double cap = in.mu_r * in.r_star * std::abs(in.f_n);
       Vec3 h = history;
-      if (update_history) h += (k_r * dt) * w_r;
+      if constexpr (Update) h += (k_r * dt) * w_r;
       const double h2 = h.squaredNorm();
       if (h2 > cap * cap) {
         h *= cap / std::sqrt(h2);

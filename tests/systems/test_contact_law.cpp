@@ -568,3 +568,64 @@ TEST_CASE("the affine velocity D r of a deforming cell enters the contact's rela
     }
   }
 }
+
+TEST_CASE("two materials: the pair takes the mixed constants of DESIGN 3.2, whichever sphere is i") {
+  // Sphere A (quartz-like) against sphere B (softer, lighter, more elastic, rougher), held at a fixed
+  // overlap, approaching at u and sliding past each other: the normal force is k_n delta + gamma_n u
+  // with 1/E* = (1-nu_A^2)/E_A + (1-nu_B^2)/E_B, m* = m_A m_B/(m_A+m_B) and beta from the mean
+  // restitution, and the sliding tangential force sits at the mean friction times it. Each mixing
+  // rule is computed here from the materials, not taken from the engine. Both orders of the pair
+  // (A as i, then B as i) give the same forces: the pair table is read as [material_i][material_j]
+  // and is symmetric. Tolerance: each side is a chain of a few dozen roundings (1e-13 relative);
+  // mixing the wrong constant (E_A alone, e_B alone) is off by far more.
+  const double delta0 = 1e-6, dt = 1e-8, u = 0.05, v_slide = 1.0;
+  Material a;  // E = 70 GPa, nu = 0.3, rho = 2650
+  a.restitution = 0.5;
+  a.friction = 0.4;
+  Material b;
+  b.young = 10e9;
+  b.poisson = 0.2;
+  b.density = 1200.0;
+  b.restitution = 0.9;
+  b.friction = 0.6;
+  Model model;
+  model.dt = dt;
+  model.materials = {a, b};
+  model.contact.rolling = RollingModel::none;
+  model.finalize();
+
+  const double e_star = 1.0 / ((1.0 - 0.09) / 70e9 + (1.0 - 0.04) / 10e9);
+  const double r_star = k_radius / 2.0;
+  const double volume = 4.0 / 3.0 * std::numbers::pi * k_radius * k_radius * k_radius;
+  const double m_a = 2650.0 * volume, m_b = 1200.0 * volume;
+  const double m_star = m_a * m_b / (m_a + m_b);
+  const double le = std::log(0.5 * (0.5 + 0.9));
+  const double beta = le / std::sqrt(le * le + std::numbers::pi * std::numbers::pi);
+  const double mu = 0.5 * (0.4 + 0.6);
+
+  for (const bool a_first : {true, false}) {
+    INFO("sphere 0 is material " << (a_first ? "A" : "B"));
+    State s;
+    const double L = 16.0 * k_radius;
+    s.cell.length = s.cell.length0 = Vec3::Constant(L);
+    const Vec3 c = Vec3::Constant(L / 2.0);
+    const double arm = k_radius - delta0 / 2.0;
+    add_sphere(s, model, 0, c - Vec3(arm, 0, 0), k_radius, a_first ? 0 : 1);
+    add_sphere(s, model, 1, c + Vec3(arm, 0, 0), k_radius, a_first ? 1 : 0);
+    // Sphere 1 approaches along -x and slides along -y; the positions stay (no integrator here).
+    s.particles.velocity[1] = Vec3(-u, -v_slide, 0);
+    World world(model, s, contact_systems(), ExecutorConfig{Backend::tbb, 2});
+    world.step(100);  // u_t = 100 v dt = 1e-6 m: k_t u_t far above the cap, so it slides
+    const double delta = overlap_of(world.state());
+    const double sqrt_rd = std::sqrt(r_star * delta);
+    const double k_n = 4.0 / 3.0 * e_star * sqrt_rd;
+    const double gamma_n = -2.0 * std::sqrt(5.0 / 6.0) * beta * std::sqrt(2.0 * e_star * sqrt_rd * m_star);
+    const double f_n = k_n * delta + gamma_n * u;
+    const Particles& q = world.state().particles;
+    CHECK(q.force[0].x() == doctest::Approx(-f_n).epsilon(1e-13));
+    CHECK(q.force[0].y() == doctest::Approx(-mu * f_n).epsilon(1e-13));  // dragged along -y by sphere 1
+    CHECK(q.force[1] == -q.force[0]);
+    // The damping is a visible share of F_n, so the mixed restitution and m* are tested, not lost.
+    CHECK(gamma_n * u > 1e-3 * f_n);
+  }
+}
