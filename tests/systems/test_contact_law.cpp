@@ -379,14 +379,14 @@ std::vector<SystemSpec> contact_systems() {
   return {make_system<Broadphase>(), make_system<HertzMindlin>(), make_system<ForceGather>()};
 }
 
-State held_pair(const Model& model, double delta) {
+State held_pair(const Model& model, double delta, std::uint32_t material_0 = 0, std::uint32_t material_1 = 0) {
   State s;
   const double L = 16.0 * k_radius;
   s.cell.length = s.cell.length0 = Vec3::Constant(L);
   const Vec3 c = Vec3::Constant(L / 2.0);
   const double a = k_radius - delta / 2.0;
-  add_sphere(s, model, 0, c - Vec3(a, 0, 0), k_radius, 0);
-  add_sphere(s, model, 1, c + Vec3(a, 0, 0), k_radius, 0);
+  add_sphere(s, model, 0, c - Vec3(a, 0, 0), k_radius, material_0);
+  add_sphere(s, model, 1, c + Vec3(a, 0, 0), k_radius, material_1);
   return s;
 }
 
@@ -605,13 +605,7 @@ TEST_CASE("two materials: the pair takes the mixed constants of DESIGN 3.2, whic
 
   for (const bool a_first : {true, false}) {
     INFO("sphere 0 is material " << (a_first ? "A" : "B"));
-    State s;
-    const double L = 16.0 * k_radius;
-    s.cell.length = s.cell.length0 = Vec3::Constant(L);
-    const Vec3 c = Vec3::Constant(L / 2.0);
-    const double arm = k_radius - delta0 / 2.0;
-    add_sphere(s, model, 0, c - Vec3(arm, 0, 0), k_radius, a_first ? 0 : 1);
-    add_sphere(s, model, 1, c + Vec3(arm, 0, 0), k_radius, a_first ? 1 : 0);
+    State s = held_pair(model, delta0, a_first ? 0 : 1, a_first ? 1 : 0);
     // Sphere 1 approaches along -x and slides along -y; the positions stay (no integrator here).
     s.particles.velocity[1] = Vec3(-u, -v_slide, 0);
     World world(model, s, contact_systems(), ExecutorConfig{Backend::tbb, 2});
