@@ -143,7 +143,8 @@ void contact_loop(const Model& model, State& state, Executor& exec) {
 
   const PairMaterial* const pair_mat = model.pairs.data();
   const double dt = model.dt;
-  const double damp_0 = -k_two_sqrt_5_6 * model.pairs[0].beta;  // one material: the pairs' constant
+  // One material: the constant of every pair (no pairs without materials: then nothing reads it).
+  const double damp_0 = n_mat == 0 ? 0.0 : -k_two_sqrt_5_6 * model.pairs[0].beta;
   exec.parallel_for(m, k_contact_grain, [=](std::size_t b, std::size_t e) {
     // The pointers are copied by value into the closure: the pass needs more of them than there
     // are registers, and a spilled copy reloads with one load instead of two through a reference.
