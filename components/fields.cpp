@@ -24,6 +24,7 @@ std::string_view component_name(Component c) {
     case Component::contact_rolling: return "contact_rolling";
     case Component::cell: return "cell";
     case Component::gather_index: return "gather_index";
+    case Component::pair_constants: return "pair_constants";
     case Component::stress: return "stress";
     case Component::count: break;
   }

@@ -34,6 +34,7 @@ enum class Component : std::uint8_t {
   cell,
   // Scratch components (rebuilt, never checkpointed).
   gather_index,
+  pair_constants,
   stress,  // the homogenizer's measured stress, read by the servo in the same step
   count
 };

@@ -26,6 +26,18 @@ struct GatherIndex {
   std::vector<std::uint32_t> fill;     // (n) -, cursor buffer of the counting sort (kept: no allocation per build)
 };
 
+/// Per-pair constants of the contact law that depend only on the two spheres (radii and masses
+/// never change) and the pair's image: computed when the list is built, so the contact pass
+/// reads them in pair order instead of loading both spheres' radii and masses and dividing for
+/// R* and m* every step, and takes the image
+/// shift H n from a table of the 27 images instead of converting and multiplying three integers.
+struct PairConstants {
+  std::vector<double> r_i, r_j;  // (m) m, radii of the two spheres; broadphase
+  std::vector<double> r_star;    // (m) m, R* = R_i R_j / (R_i + R_j); broadphase
+  std::vector<double> m_star;    // (m) kg, m* = m_i m_j / (m_i + m_j); broadphase
+  std::vector<std::uint8_t> image_code;  // (m) -, the image (each of -1, 0, 1) as 9 (I_z+1) + 3 (I_y+1) + I_x+1
+};
+
 /// Broadphase private buffers and statistics.
 struct BroadphaseScratch {
   std::vector<std::uint32_t> bin_start;     // (n_bins+1) -, CSR of particles per bin
@@ -57,6 +69,7 @@ struct MeasuredStress {
 class Scratch {
  public:
   GatherIndex gather;
+  PairConstants pair;
   MeasuredStress measured;
   BroadphaseScratch broadphase;
   // True while forces are evaluated at scene setup: contact laws then leave their history untouched
@@ -79,6 +92,12 @@ template <>
 struct ScratchField<Component::gather_index> {
   template <class S>
   static auto& get(S& s) { return s.gather; }
+};
+
+template <>
+struct ScratchField<Component::pair_constants> {
+  template <class S>
+  static auto& get(S& s) { return s.pair; }
 };
 
 template <>

@@ -10,6 +10,7 @@
 #include "systems/wrap.hpp"
 
 #include <cmath>
+#include <cstdlib>
 #include <string>
 
 namespace sandcell {
@@ -115,6 +116,17 @@ void validate(const Model& model, const State& state) {
     if (!(state.cell.length[a] > 0.0) || !std::isfinite(state.cell.length[a]))
       throw std::invalid_argument("cell length " + std::to_string(a) + " = " + std::to_string(state.cell.length[a]) +
                                   ": must be > 0 m");
+  // The broadphase builds images of -1, 0 or 1 per axis (the cell is wider than the cutoff); the
+  // contact pass takes the shift from a table of those 27 (PairConstants).
+  const ContactPairs& pairs = state.contacts.pairs;
+  for (std::size_t k = 0; k < pairs.image.size(); ++k) {
+    const Image& img = pairs.image[k];
+    if (std::abs(img[0]) > 1 || std::abs(img[1]) > 1 || std::abs(img[2]) > 1)
+      throw std::invalid_argument("contact " + std::to_string(k) + " (ids " + std::to_string(pairs.id_i[k]) + ", " +
+                                  std::to_string(pairs.id_j[k]) + "): image = (" + std::to_string(img[0]) + ", " +
+                                  std::to_string(img[1]) + ", " + std::to_string(img[2]) +
+                                  "): each component must be -1, 0 or 1");
+  }
 }
 
 namespace {
@@ -147,6 +159,7 @@ World::World(Model model, State state, std::vector<SystemSpec> systems, Executor
     // stage of a test): only the gather index, which is scratch, is rebuilt from the pair list.
     // Nothing else is recomputed, so continuing from here is bitwise the same as never stopping.
     rebuild_gather_index(state_.contacts.pairs, state_.particles.size(), scratch_.gather);
+    rebuild_pair_constants(state_.contacts.pairs, state_.particles.radius, state_.particles.mass, scratch_.pair);
     return;
   }
   // Forces of the initial configuration (LAMMPS `setup`): list build, contact law, gather, with

@@ -2,8 +2,11 @@
 
 #include "systems/wrap.hpp"
 
+#include "engine/assert.hpp"
+
 #include <algorithm>
 #include <cmath>
+#include <cstdlib>
 #include <limits>
 #include <numeric>
 #include <string>
@@ -241,6 +244,8 @@ void build_neighbor_list(const Model& model, State& state, Scratch& scratch, Exe
   reference.assign(x.begin(), x.end());
 
   rebuild_gather_index(pairs, n, gather);
+  rebuild_pair_constants(pairs, radius, state.read<Component::particle_mass>(),
+                         scratch.write<Component::pair_constants>());
   bp.cutoff = cutoff;
   bp.r_min = n == 0 ? 0.0 : *std::min_element(radius.begin(), radius.end());
   ++bp.builds;
@@ -259,6 +264,29 @@ void rebuild_gather_index(const ContactPairs& pairs, std::size_t n, GatherIndex&
   gather.j_entry.resize(m);
   gather.fill.assign(gather.j_start.begin(), gather.j_start.end() - 1);
   for (std::size_t k = 0; k < m; ++k) gather.j_entry[gather.fill[pairs.j[k]]++] = static_cast<std::uint32_t>(k);
+}
+
+void rebuild_pair_constants(const ContactPairs& pairs, const std::vector<double>& radius,
+                            const std::vector<double>& mass, PairConstants& out) {
+  const std::size_t m = pairs.size();
+  out.r_star.resize(m);
+  out.m_star.resize(m);
+  out.image_code.resize(m);
+  out.r_i.resize(m);
+  out.r_j.resize(m);
+  for (std::size_t k = 0; k < m; ++k) {
+    const std::uint32_t i = pairs.i[k], j = pairs.j[k];
+    const Image& img = pairs.image[k];
+    // The build gives images of -1, 0 or 1 per axis (the cell is wider than the cutoff); a state
+    // handed to World is checked for it (validate in engine/world.cpp).
+    SANDCELL_ASSERT(std::abs(img[0]) <= 1 && std::abs(img[1]) <= 1 && std::abs(img[2]) <= 1,
+                    "pair image outside -1..1");
+    out.image_code[k] = static_cast<std::uint8_t>(9 * (img[2] + 1) + 3 * (img[1] + 1) + (img[0] + 1));
+    out.r_i[k] = radius[i];
+    out.r_j[k] = radius[j];
+    out.r_star[k] = radius[i] * radius[j] / (radius[i] + radius[j]);
+    out.m_star[k] = mass[i] * mass[j] / (mass[i] + mass[j]);
+  }
 }
 
 void Broadphase::run(const Model& model, State& state, Scratch& scratch, Executor& exec) {

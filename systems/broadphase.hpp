@@ -32,16 +32,20 @@ namespace sandcell {
 struct Broadphase {
   static constexpr std::string_view name = "broadphase";
   static constexpr ComponentMask reads =
-      mask_of({Component::particle_id, Component::particle_radius, Component::cell});
+      mask_of({Component::particle_id, Component::particle_radius, Component::particle_mass, Component::cell});
   static constexpr ComponentMask writes =
       mask_of({Component::particle_position, Component::contact_pairs, Component::contact_tangential, Component::contact_rolling,
-               Component::particle_reference, Component::gather_index});
+               Component::particle_reference, Component::gather_index, Component::pair_constants});
   static void run(const Model& model, State& state, Scratch& scratch, Executor& exec);
 };
 
 /// Rebuilds the CSR gather index from the pair list alone (which is sorted by i): for a World made
 /// from a state that already holds its list and forces (a checkpoint, the next stage of a test).
 void rebuild_gather_index(const ContactPairs& pairs, std::size_t n_particles, GatherIndex& gather);
+
+/// Recomputes the per-pair constants (R*, m*) of the list from the radii and masses; same use.
+void rebuild_pair_constants(const ContactPairs& pairs, const std::vector<double>& radius,
+                            const std::vector<double>& mass, PairConstants& out);
 
 /// Builds the list unconditionally (used at scene start and by tests).
 void build_neighbor_list(const Model& model, State& state, Scratch& scratch, Executor& exec);

@@ -4,8 +4,8 @@
 // or with an incremental force history (ContactSettings::tangential); plus the rolling resistance
 // evaluator of systems/rolling.hpp when the model has one (DESIGN 3.3).
 //
-// Reads the pair list, positions, fluctuating and angular velocities, radii, masses, materials and
-// the cell. Writes, per pair slot, the force on i and the torques on i and j (contact_forces), the
+// Reads the pair list, positions, fluctuating and angular velocities, masses (epsd rolling),
+// materials, the cell and the per-pair constants (radii, R*, m*, image code) of the list. Writes, per pair slot, the force on i and the torques on i and j (contact_forces), the
 // tangential history (contact_tangential) and the rolling history (contact_rolling). One
 // parallel_for over pairs; each pair writes only its own slots, so no atomics are needed and the
 // per-particle sums are left to force_gather in a fixed order.
@@ -21,8 +21,8 @@ struct HertzMindlin {
   static constexpr std::string_view name = "hertz_mindlin";
   static constexpr ComponentMask reads =
       mask_of({Component::contact_pairs, Component::particle_position, Component::particle_velocity,
-               Component::particle_angular_velocity, Component::particle_radius, Component::particle_mass,
-               Component::particle_material, Component::cell});
+               Component::particle_angular_velocity, Component::particle_mass,
+               Component::particle_material, Component::cell, Component::pair_constants});
   static constexpr ComponentMask writes =
       mask_of({Component::contact_forces, Component::contact_tangential, Component::contact_rolling});
   static void run(const Model& model, State& state, Scratch& scratch, Executor& exec);

@@ -432,6 +432,37 @@ TEST_CASE("a cell narrower than 2 r_max + skin is a SimulationError naming the w
   }
 }
 
+TEST_CASE("a state whose pair list has an image beyond one cell is refused, naming the contact and the image") {
+  // The broadphase only ever builds images of -1, 0 or 1 (the cell is wider than the cutoff), and
+  // the contact pass takes the image shift from a table of those 27: a list edited or read from
+  // elsewhere with (2, 0, 0) must be refused at World construction, not read out of the table.
+  const double R = 1e-3;
+  const Model model = default_model(1e-7, 0.3e-3);
+  State s;
+  s.cell.length = s.cell.length0 = Vec3::Constant(10e-3);
+  add_sphere(s, model, 3, Vec3(1e-3, 5e-3, 5e-3), R, 0);
+  add_sphere(s, model, 8, Vec3(9e-3, 5e-3, 5e-3), R, 0);
+  resize(s.contacts, 1);
+  s.contacts.pairs.id_i[0] = 3;
+  s.contacts.pairs.id_j[0] = 8;
+  s.contacts.pairs.i[0] = 0;
+  s.contacts.pairs.j[0] = 1;
+  s.contacts.pairs.image[0] = Image{2, 0, 0};
+  std::string message;
+  try {
+    World world(model, s, ExecutorConfig{Backend::tbb, 1}, false);
+  } catch (const std::invalid_argument& e) {
+    message = e.what();
+  }
+  MESSAGE("message: " << message);
+  CHECK(message.find("ids 3, 8") != std::string::npos);
+  CHECK(message.find("image = (2, 0, 0)") != std::string::npos);
+  CHECK(message.find("-1, 0 or 1") != std::string::npos);
+  // The same list with image (-1, 0, 0), the one the broadphase would build, is accepted.
+  s.contacts.pairs.image[0] = Image{-1, 0, 0};
+  CHECK_NOTHROW(World(model, s, ExecutorConfig{Backend::tbb, 1}, false));
+}
+
 namespace {
 
 // Dyadic scene for exact periodicity checks: cell 2^-5 m, radius 2^-10 m, every coordinate a
