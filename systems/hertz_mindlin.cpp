@@ -180,11 +180,11 @@ void contact_loop(const Model& model, State& state, const Scratch& scratch, Exec
             blk.damp[t] = -k_two_sqrt_5_6 * mat.beta;
           }
           // Phase 3 reads these per pair inside a long chain of arithmetic; fetching them here
-          // overlaps their cache misses across the block.
+          // overlaps their cache misses across the block. Only the j side: i changes every ~4
+          // pairs and walks the arrays in order, which the hardware prefetcher follows (the
+          // prefetches of v_i, w_i cost 2 % of the step).
           __builtin_prefetch(&v[j]);
           __builtin_prefetch(&w[j]);
-          __builtin_prefetch(&v[i]);
-          __builtin_prefetch(&w[i]);
         }
       };
       // Phase 2: stiffness and damping, branch-free (apart pairs get overlap <= 0, zeros after).
