@@ -264,6 +264,19 @@ void rebuild_gather_index(const ContactPairs& pairs, std::size_t n, GatherIndex&
   gather.j_entry.resize(m);
   gather.fill.assign(gather.j_start.begin(), gather.j_start.end() - 1);
   for (std::size_t k = 0; k < m; ++k) gather.j_entry[gather.fill[pairs.j[k]]++] = static_cast<std::uint32_t>(k);
+  // Visiting order: within each block, by (count as i, count as j, index); a strict total order,
+  // so the permutation is unique (std::sort, which allocates nothing).
+  gather.visit.resize(n);
+  std::iota(gather.visit.begin(), gather.visit.end(), 0u);
+  const auto by_counts = [&](std::uint32_t a, std::uint32_t b) {
+    const std::uint32_t ia = gather.i_start[a + 1] - gather.i_start[a], ib = gather.i_start[b + 1] - gather.i_start[b];
+    if (ia != ib) return ia < ib;
+    const std::uint32_t ja = gather.j_start[a + 1] - gather.j_start[a], jb = gather.j_start[b + 1] - gather.j_start[b];
+    if (ja != jb) return ja < jb;
+    return a < b;
+  };
+  for (std::size_t b0 = 0; b0 < n; b0 += k_gather_block)
+    std::sort(gather.visit.begin() + b0, gather.visit.begin() + std::min(n, b0 + k_gather_block), by_counts);
 }
 
 void rebuild_pair_constants(const ContactPairs& pairs, const std::vector<double>& radius,

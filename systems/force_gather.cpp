@@ -15,10 +15,12 @@ void ForceGather::run(const Model&, State& state, Scratch& scratch, Executor& ex
   const std::uint32_t* __restrict i_start = index.i_start.data();
   const std::uint32_t* __restrict j_start = index.j_start.data();
   const std::uint32_t* __restrict j_entry = index.j_entry.data();
+  const std::uint32_t* __restrict visit = index.visit.data();
   Vec3* __restrict out_f = force.data();
   Vec3* __restrict out_t = torque.data();
   exec.parallel_for(force.size(), k_particle_grain, [&](std::size_t b, std::size_t e) {
-    for (std::size_t p = b; p < e; ++p) {
+    for (std::size_t o = b; o < e; ++o) {
+      const std::uint32_t p = visit[o];  // a permutation within blocks (GatherIndex)
       Vec3 fs = Vec3::Zero();
       Vec3 ts = Vec3::Zero();
       // As i: a contiguous run of pair slots.
