@@ -328,6 +328,7 @@ Config parse_config(const std::string& text, const std::string& source) {
     s.boolean("stop_at_critical", h.stop_at_critical);
     s.number("critical_window", h.critical_window, 1e-6, 1.0, "must be in (0, 1]");
     s.number("critical_tolerance", h.critical_tolerance, 1e-9, 1.0, "must be in (0, 1]");
+    s.number("critical_tolerance_e", h.critical_tolerance_e, 1e-9, 1.0, "must be in (0, 1]");
     const std::vector<double> rates = s.numbers("strain_rates", "three finite rates in 1/s");
     if (!rates.empty()) {
       if (rates.size() != 3) s.fail("strain_rates", std::to_string(rates.size()) + " values", "expected 3 rates (1/s)");

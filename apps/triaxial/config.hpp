@@ -45,8 +45,9 @@ struct ShearConfig {
   int servo_interval = 1;         // steps between servo updates
   double max_axial_strain = 0.2;  // -, stop at this axial (log) strain
   bool stop_at_critical = false;  // also stop when critical state is detected
-  double critical_window = 0.05;  // -, axial strain window over which q, p and e must be stationary
-  double critical_tolerance = 0.02;  // -, largest relative change of q and p (and of e, absolute) in the window
+  double critical_window = 0.05;  // -, axial strain window over which eta, p and e must be stationary (critical.hpp)
+  double critical_tolerance = 0.02;  // -, largest relative change of eta = q/p and p over the window (fitted line)
+  double critical_tolerance_e = 0.005;  // -, largest change of e over the window (fitted line)
   Vec3 strain_rates = Vec3::Zero();  // 1/s per axis, compression positive, for path "strain"
   std::uint64_t steps = 0;           // steps of a strain-controlled stage
 };

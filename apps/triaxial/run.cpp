@@ -1,6 +1,7 @@
 #include "run.hpp"
 
 #include "config.hpp"
+#include "critical.hpp"
 
 #include "engine/checkpoint.hpp"
 #include "engine/generate.hpp"
@@ -449,21 +450,13 @@ bool Runner::prepare(double p0, Summary& summary) {
   return true;
 }
 
-// Critical state (q, p and e stationary over the last `window` of axial strain) and the peak.
+// The series rows of the test, for the critical-state test (critical.hpp) and the peak.
 struct History {
   std::vector<double> eps1, p, q, e;
-  bool critical(double window, double tolerance) const {
-    const std::size_t n = eps1.size();
-    if (n < 3 || eps1.back() < 2.0 * window) return false;
-    std::size_t first = n - 1;
-    while (first > 0 && eps1[first - 1] >= eps1.back() - window) --first;
-    if (first == 0 || n - first < 3) return false;
-    const auto spread = [&](const std::vector<double>& v, bool relative) {
-      const auto [lo, hi] = std::minmax_element(v.begin() + first, v.end());
-      const double scale = relative ? std::abs(v.back()) : 1.0;
-      return scale > 0.0 ? (*hi - *lo) / scale : HUGE_VAL;
-    };
-    return spread(q, true) < tolerance && spread(p, true) < tolerance && spread(e, false) < tolerance;
+  CriticalCheck critical(const ShearConfig& h) const {
+    return check_critical(eps1, p, q, e,
+                          CriticalTest{.window = h.critical_window, .tolerance = h.critical_tolerance,
+                                       .tolerance_e = h.critical_tolerance_e});
   }
   CheckpointExtra save() const {
     CheckpointExtra x;
@@ -571,7 +564,15 @@ void Runner::shear(const TestSpec& test, Summary& summary) {
     const bool done = test.path == ShearPath::strain ? s >= h.steps : eps1 >= max_strain;
     if (s % o.series_interval == 0 || done) {
       row();
-      if (h.stop_at_critical && history.critical(h.critical_window, h.critical_tolerance)) summary.critical = true;
+      if (h.stop_at_critical) {
+        if (const CriticalCheck c = history.critical(h); c.reached) {
+          summary.critical = true;
+          log_.line(test.name + ": critical state at eps1 = " + num(100.0 * eps1, "%.2f") + " %: over the last " +
+                    num(100.0 * h.critical_window, "%g") + " % (" + std::to_string(c.rows) +
+                    " rows) the fitted lines change eta by " + num(100.0 * c.change_eta, "%.2f") + " %, p by " +
+                    num(100.0 * c.change_p, "%.2f") + " %, e by " + num(c.change_e, "%.4f"));
+        }
+      }
     }
     if (o.snapshot_interval > 0 && s % o.snapshot_interval == 0) results->write_snapshot(st);
     if (done || summary.critical) break;
