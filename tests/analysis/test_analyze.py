@@ -8,6 +8,7 @@ Every fit is checked on synthetic data made with known parameters plus seeded Ga
 command line is run on small synthetic results files written here with h5py.
 """
 import json
+import math
 import os
 import subprocess
 import sys
@@ -256,6 +257,37 @@ class CriticalDetection(unittest.TestCase):
         self.assertFalse(r["reached"])
         self.assertFalse(r["checks"]["e"]["ok"])
         self.assertTrue(r["checks"]["eta"]["ok"])
+
+    def test_b_and_theta_are_those_of_the_mean_stress_not_the_mean_of_sorted_rows(self):
+        # Lateral stresses fluctuating +-3 % independently about a state of exact b (0, 0.5, 1):
+        # the rows' b, from sorted principal stresses, is biased away from 0 and 1 (s2 - s3 or
+        # s1 - s2 counted positive whatever its sign), while the window-mean tensor's b is the
+        # state's to the noise of a mean of 101 rows (sd ~ 0.03 x sigma / (s1 - s3) / 10 < 0.005).
+        rng = np.random.default_rng(11)
+        n = self.eps1.size
+        for b in (0.0, 0.5, 1.0):
+            s = _tail(rng, self.eps1)
+            p = s["p"]
+            s1, s3 = 1.6 * p, 0.7 * p  # q/p = 0.9 at b = 0: shear stresses zero, axes principal
+            s2 = s3 + b * (s1 - s3)
+            lat2 = s2 * (1 + rng.normal(0, 0.03, n))
+            lat3 = s3 * (1 + rng.normal(0, 0.03, n))
+            ax = s1 * (1 + rng.normal(0, 0.03, n))
+            stress = np.column_stack([ax, lat2, lat3, np.zeros(n), np.zeros(n), np.zeros(n)])
+            ps = np.sort(stress[:, :3], axis=1)[:, ::-1]
+            s["b"] = (ps[:, 1] - ps[:, 2]) / (ps[:, 0] - ps[:, 2])
+            s["theta"] = A.lode_from_b(s["b"])
+            s["stress"] = stress
+            pt = A.detect_critical(self.eps1, s)["point"]
+            self.assertAlmostEqual(pt["b"], b, delta=0.01)
+            self.assertAlmostEqual(pt["theta"], float(A.lode_from_b(b)), delta=math.radians(0.6))
+            if b in (0.0, 1.0):  # the rows' mean is off by more than the tolerance above
+                self.assertGreater(abs(pt["b_rows"] - b), 0.02)
+        # Without a stress tensor, the rows' mean is all there is.
+        s = _tail(np.random.default_rng(12), self.eps1)
+        pt = A.detect_critical(self.eps1, s)["point"]
+        self.assertEqual(pt["b"], 0.0)
+        self.assertNotIn("b_rows", pt)
 
     def test_short_test_is_not_critical(self):
         eps1 = np.linspace(0, 0.08, 161)
