@@ -37,8 +37,9 @@ struct GatherIndex {
 /// Per-pair constants of the contact law that depend only on the two spheres (radii and masses
 /// never change) and the pair's image: computed when the list is built, so the contact pass
 /// reads them in pair order instead of loading both spheres' radii and masses and dividing for
-/// R* and m* every step, and takes the image
-/// shift H n from a table of the 27 images instead of converting and multiplying three integers.
+/// R* and m* every step, and takes the image shift H n from a table of the 27 images instead of
+/// converting and multiplying three integers. R* is kept although R_i and R_j are: it saves a
+/// division per pair and step.
 struct PairConstants {
   std::vector<double> r_i, r_j;  // (m) m, radii of the two spheres; broadphase
   std::vector<double> r_star;    // (m) m, R* = R_i R_j / (R_i + R_j); broadphase

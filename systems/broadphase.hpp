@@ -43,7 +43,7 @@ struct Broadphase {
 /// from a state that already holds its list and forces (a checkpoint, the next stage of a test).
 void rebuild_gather_index(const ContactPairs& pairs, std::size_t n_particles, GatherIndex& gather);
 
-/// Recomputes the per-pair constants (R*, m*) of the list from the radii and masses; same use.
+/// Recomputes the per-pair constants (radii, R*, m*, image code) of the list; same use.
 void rebuild_pair_constants(const ContactPairs& pairs, const std::vector<double>& radius,
                             const std::vector<double>& mass, PairConstants& out);
 

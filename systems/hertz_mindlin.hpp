@@ -5,10 +5,11 @@
 // evaluator of systems/rolling.hpp when the model has one (DESIGN 3.3).
 //
 // Reads the pair list, positions, fluctuating and angular velocities, masses (epsd rolling),
-// materials, the cell and the per-pair constants (radii, R*, m*, image code) of the list. Writes, per pair slot, the force on i and the torques on i and j (contact_forces), the
-// tangential history (contact_tangential) and the rolling history (contact_rolling). One
-// parallel_for over pairs; each pair writes only its own slots, so no atomics are needed and the
-// per-particle sums are left to force_gather in a fixed order.
+// materials, the cell and the per-pair constants (radii, R*, m*, image code) of the list. Writes,
+// per pair slot, the force on i and the torques on i and j (contact_forces), the tangential history
+// (contact_tangential) and the rolling history (contact_rolling). One parallel_for over pairs; each
+// pair writes only its own slots, so no atomics are needed and the per-particle sums are left to
+// force_gather in a fixed order.
 // The relative velocity at the contact includes the affine part D r unless liggghts_compat.
 // Pairs in the list that do not touch get zero force and zero history (history resets when a
 // contact opens). The law is instantiated per (tangential model, rolling model, affine term), so

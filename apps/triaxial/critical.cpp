@@ -8,9 +8,14 @@ namespace sandcell::triaxial {
 
 namespace {
 
-// Least-squares slope of y against x over [first, n), with y given per row by `value`.
+struct Line {
+  double slope;  // least-squares slope of y against x
+  double mean;   // mean of y
+};
+
+// The straight line through rows [first, n), with y given per row by `value`.
 template <class Value>
-double slope(std::span<const double> x, std::size_t first, Value value) {
+Line fit(std::span<const double> x, std::size_t first, Value value) {
   const std::size_t n = x.size();
   double mx = 0.0, my = 0.0;
   for (std::size_t k = first; k < n; ++k) {
@@ -25,14 +30,7 @@ double slope(std::span<const double> x, std::size_t first, Value value) {
     sxy += (x[k] - mx) * (value(k) - my);
     sxx += (x[k] - mx) * (x[k] - mx);
   }
-  return sxx > 0.0 ? sxy / sxx : std::numeric_limits<double>::quiet_NaN();
-}
-
-template <class Value>
-double mean(std::size_t first, std::size_t n, Value value) {
-  double s = 0.0;
-  for (std::size_t k = first; k < n; ++k) s += value(k);
-  return s / static_cast<double>(n - first);
+  return Line{sxx > 0.0 ? sxy / sxx : std::numeric_limits<double>::quiet_NaN(), my};
 }
 
 }  // namespace
@@ -53,12 +51,12 @@ CriticalCheck check_critical(std::span<const double> eps1, std::span<const doubl
   const auto pk = [&](std::size_t k) { return p[k]; };
   const auto ek = [&](std::size_t k) { return e[k]; };
   const auto relative = [&](auto value) {
-    const double m = mean(first, n, value);
-    return std::abs(slope(eps1, first, value) * test.window) / (m != 0.0 ? std::abs(m) : 1.0);
+    const Line line = fit(eps1, first, value);
+    return std::abs(line.slope * test.window) / (line.mean != 0.0 ? std::abs(line.mean) : 1.0);
   };
   out.change_eta = relative(eta);
   out.change_p = relative(pk);
-  out.change_e = std::abs(slope(eps1, first, ek) * test.window);
+  out.change_e = std::abs(fit(eps1, first, ek).slope * test.window);
   // NaN (a series that is not finite) fails every comparison: not critical.
   out.reached = out.change_eta <= test.tolerance && out.change_p <= test.tolerance && out.change_e <= test.tolerance_e;
   return out;
