@@ -66,6 +66,18 @@ struct BroadphaseScratch {
   std::string error;                        // set when the scene cannot be continued; checked by World
 };
 
+/// Contact pass private buffers: the order in which it visits the pairs of each block of 64
+/// (hertz_mindlin.cpp says why). Hints only: every pair is visited once whatever the order and
+/// writes only its own slots, so no result depends on them, and they are neither remapped at
+/// rebuilds (a stale hint costs mispredicted branches, nothing else) nor checkpointed.
+struct ContactScratch {
+  std::vector<std::uint8_t> regime;  // (m) -, caps pair k was at in the last step: bit 0 Coulomb, bit 1 rolling
+  std::vector<std::uint8_t> order;   // (m) -, per block, a permutation of its pair offsets 0..63
+  std::vector<std::uint8_t> stale;   // (blocks) -, 1: a regime in the block changed, sort it again
+  std::vector<std::uint8_t> sorted;  // (blocks) -, 1: visit in `order`; 0: no pair at a cap, array order
+  std::size_t pairs = 0;             // size of the list the orders were made for
+};
+
 template <Component C>
 struct ScratchField;
 
@@ -81,6 +93,7 @@ class Scratch {
   PairConstants pair;
   MeasuredStress measured;
   BroadphaseScratch broadphase;
+  ContactScratch contact;
   // True while forces are evaluated at scene setup: contact laws then leave their history untouched
   // (as LAMMPS/LIGGGHTS do in `run 0` setup), so setting up a scene does not advance it.
   bool setup = false;

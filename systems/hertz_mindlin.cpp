@@ -29,6 +29,7 @@ struct NormalTangential {
   Vec3 f_t;         // N, tangential force on i
   double f_n;       // N, normal force (signed)
   double k_n, k_t;  // N/m
+  unsigned capped;  // 1 at the Coulomb cap, else 0
 };
 
 // Hertz-Mindlin with the LIGGGHTS-form displacement history (u_t, m) or the incremental force
@@ -49,6 +50,7 @@ struct HertzMindlinEvaluator {
     const double f_cap = mat.friction * std::abs(f_n);
 
     Vec3 f_t;
+    unsigned capped = 0;
     Vec3 h = history;
     if constexpr (Tangential == TangentialModel::history) {
       // u_t += v_t dt, projected on the tangent plane; F_t = -k_t u_t; at the Coulomb cap the
@@ -58,6 +60,7 @@ struct HertzMindlinEvaluator {
       f_t = -k_t * h;
       const double f2 = f_t.squaredNorm();
       if (f2 > f_cap * f_cap) {
+        capped = 1;
         f_t *= f_cap / std::sqrt(f2);
         h = f_t / -k_t;
       } else {
@@ -73,6 +76,7 @@ struct HertzMindlinEvaluator {
       if constexpr (Update) h -= (k_t * dt) * v_t;
       const double f2 = h.squaredNorm();
       if (f2 > f_cap * f_cap) {
+        capped = 1;
         h *= f_cap / std::sqrt(f2);
         f_t = h;
       } else {
@@ -80,7 +84,7 @@ struct HertzMindlinEvaluator {
       }
     }
     history = h;
-    return NormalTangential{f_t, f_n, k_n, k_t};
+    return NormalTangential{f_t, f_n, k_n, k_t, capped};
   }
 };
 
@@ -97,6 +101,7 @@ struct HertzMindlinEvaluator {
 // 1.96 s per 1000 steps on dense-20k, 1 thread).
 constexpr std::size_t k_block = 64;
 static_assert(k_contact_grain % k_block == 0, "blocks must not straddle parallel chunks");
+static_assert(k_block < 256, "phase 3 keeps the visiting order in bytes and counts in 12 bits");
 
 struct alignas(64) Block {
   double rx[k_block], ry[k_block], rz[k_block];  // m, branch vector
@@ -111,7 +116,7 @@ struct alignas(64) Block {
 };
 
 template <TangentialModel Tangential, RollingModel Roll, bool Affine, bool Update>
-void contact_loop(const Model& model, State& state, const Scratch& scratch, Executor& exec) {
+void contact_loop(const Model& model, State& state, Scratch& scratch, Executor& exec) {
   const ContactPairs& pairs = state.read<Component::contact_pairs>();
   const Vec3* __restrict x = state.read<Component::particle_position>().data();
   const Vec3* __restrict v = state.read<Component::particle_velocity>().data();
@@ -135,6 +140,14 @@ void contact_loop(const Model& model, State& state, const Scratch& scratch, Exec
   // cdt has no history: like none, it allocates none.
   constexpr bool rolling_history = Roll == RollingModel::epsd2 || Roll == RollingModel::epsd;
   if constexpr (rolling_history) rolling.resize(m);
+  ContactScratch& hint = scratch.contact;  // visiting order of phase 3 (hints, ContactScratch)
+  if (hint.pairs != m || hint.order.size() != m) {
+    hint.regime.assign(m, 0);
+    hint.order.assign(m, 0);
+    hint.stale.assign((m + k_block - 1) / k_block, 1);
+    hint.sorted.assign((m + k_block - 1) / k_block, 0);
+    hint.pairs = m;
+  }
 
   const Vec3 rate = cell.rate;
   const std::size_t n_mat = model.materials.size();
@@ -158,6 +171,10 @@ void contact_loop(const Model& model, State& state, const Scratch& scratch, Exec
   Vec3* __restrict torque_j = out.torque_j.data();
   Vec3* __restrict hist_t = tangential.data();
   Vec3* __restrict hist_r = rolling.data();
+  std::uint8_t* __restrict regime = hint.regime.data();
+  std::uint8_t* __restrict order_all = hint.order.data();
+  std::uint8_t* __restrict stale = hint.stale.data();
+  std::uint8_t* __restrict sorted = hint.sorted.data();
   const RollingEvaluator<Roll, Update> roll{model.dt, model.contact.rolling_damping};
 
   const PairMaterial* const pair_mat = model.pairs.data();
@@ -223,8 +240,30 @@ void contact_loop(const Model& model, State& state, const Scratch& scratch, Exec
         gather(std::false_type{});
         stiffness(std::false_type{});
       }
+      // Phase 3 visits the block's touching pairs grouped by the caps they were at in the last
+      // step (regime): the cap tests then run in stretches of the same outcome, which the branch
+      // predictor follows. In array order they come at random, and each miss costs ~50 cycles:
+      // on dense-20k shortened by 1 % (scene B), a quarter of the touching pairs slide and 59 %
+      // are at the rolling cap (means over its 20,000 steps), and a pair changes regime about 5
+      // times in 10,000 steps. The order is a stable counting sort of the block by regime, made
+      // again only when a regime in the block changed in the last step; a block with no pair at a
+      // cap keeps array order. Scene B over 20,000 steps: hertz_mindlin 29.5-31.7 -> 23.6-24.1 s
+      // on 2 threads; scene A, which has almost no caps, pays 2 % for keeping the regimes.
+      const std::size_t block = k0 / k_block;
+      std::uint8_t* __restrict order = order_all + k0;
+      if (stale[block]) {
+        unsigned start[5] = {0, 0, 0, 0, 0};
+        for (std::size_t t = 0; t < nb; ++t) ++start[(regime[k0 + t] & 3u) + 1];
+        sorted[block] = start[1] != nb;
+        if (sorted[block]) {
+          for (unsigned g = 1; g < 4; ++g) start[g] += start[g - 1];
+          for (std::size_t t = 0; t < nb; ++t) order[start[regime[k0 + t] & 3u]++] = static_cast<std::uint8_t>(t);
+        }
+        stale[block] = 0;
+      }
+      unsigned changed = 0;
       // Phase 3: tangential and rolling laws, outputs.
-      for (std::size_t t = 0; t < nb; ++t) {
+      auto visit = [&](std::size_t t) __attribute__((always_inline)) {
         const std::size_t k = k0 + t;
         if (!(blk.overlap[t] > 0.0)) {
           force[k].setZero();
@@ -232,7 +271,11 @@ void contact_loop(const Model& model, State& state, const Scratch& scratch, Exec
           torque_j[k].setZero();
           hist_t[k].setZero();  // history resets when the contact opens
           if constexpr (rolling_history) hist_r[k].setZero();
-          continue;
+          if (regime[k] != 0) [[unlikely]] {
+            regime[k] = 0;
+            changed = 1;
+          }
+          return;
         }
         const std::uint32_t i = pi[k], j = pj[k];
         const Vec3 r(blk.rx[t], blk.ry[t], blk.rz[t]);
@@ -252,6 +295,7 @@ void contact_loop(const Model& model, State& state, const Scratch& scratch, Exec
         const Vec3 arm_torque = c.n.cross(nt.f_t);  // torque on i is -c_i n x F_t, on j -c_j n x F_t
         Vec3 t_i = -c.c_i * arm_torque;
         Vec3 t_j = -c.c_j * arm_torque;
+        unsigned rolling_capped = 0;
         if constexpr (Roll != RollingModel::none) {
           Vec3 no_history = Vec3::Zero();  // cdt: not read, not kept
           double i_r = 0.0;
@@ -262,14 +306,25 @@ void contact_loop(const Model& model, State& state, const Scratch& scratch, Exec
           }
           const Vec3 moment = roll.evaluate(RollingInput{c.n, c.w_i - c.w_j, c.overlap, nt.f_n, nt.k_n, nt.k_t,
                                                          c.r_star, i_r, mat.rolling_friction},
-                                            rolling_history ? hist_r[k] : no_history);
+                                            rolling_history ? hist_r[k] : no_history, rolling_capped);
           t_i -= moment;
           t_j += moment;
         }
         force[k] = nt.f_n * c.n + nt.f_t;
         torque_i[k] = t_i;
         torque_j[k] = t_j;
+        const std::uint8_t now = static_cast<std::uint8_t>(nt.capped | rolling_capped);
+        if (now != regime[k]) [[unlikely]] {  // a few times per pair in 10,000 steps
+          regime[k] = now;
+          changed = 1;
+        }
+      };
+      if (sorted[block]) {
+        for (std::size_t u = 0; u < nb; ++u) visit(order[u]);
+      } else {
+        for (std::size_t t = 0; t < nb; ++t) visit(t);  // no pair at a cap: array order
       }
+      stale[block] = changed != 0;
     }
   });
 }

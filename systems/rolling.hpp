@@ -37,8 +37,9 @@ struct RollingEvaluator {
   double dt;
   double eta_r;
 
-  /// Returns the rolling moment M (torque -M on i, +M on j); updates the stored moment.
-  [[gnu::always_inline]] inline Vec3 evaluate(const RollingInput& in, Vec3& history) const {
+  /// Returns the rolling moment M (torque -M on i, +M on j); updates the stored moment. Sets bit 1
+  /// of `regime` when the moment is at its cap (never for cdt).
+  [[gnu::always_inline]] inline Vec3 evaluate(const RollingInput& in, Vec3& history, unsigned& regime) const {
     Vec3 w_r = in.w_rel;
     w_r -= w_r.dot(in.n) * in.n;  // twisting part removed
     if constexpr (Kind == RollingModel::cdt) {
@@ -53,6 +54,7 @@ struct RollingEvaluator {
       if constexpr (Update) h += (k_r * dt) * w_r;
       const double h2 = h.squaredNorm();
       if (h2 > cap * cap) {
+        regime |= 2;
         h *= cap / std::sqrt(h2);
         history = h;
         return h;
