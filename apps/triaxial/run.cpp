@@ -319,6 +319,7 @@ struct Summary {
   std::string status = "not run";
   double e0 = 0.0, z0 = 0.0, peak_eta = 0.0, peak_strain = 0.0, final_eta = 0.0, final_e = 0.0, final_p = 0.0;
   double final_strain = 0.0;
+  double z_mech = 0.0, unbalanced = 0.0;  // preparations: at the end
   std::uint64_t steps = 0;
   double wall = 0.0;
   bool critical = false;
@@ -348,9 +349,18 @@ bool Runner::prepare(double p0, Summary& summary) {
   const fs::path series = plan_.out / ("prepare-" + tag + ".h5");
   if (fs::exists(sample)) {  // only reachable with --resume: a finished preparation
     CheckpointExtra extra;
-    read_checkpoint(sample, &extra);
-    summary.e0 = extra.doubles["e0"].at(0);
-    summary.z0 = extra.doubles["Z"].at(0);
+    const State st = read_checkpoint(sample, &extra);
+    const auto value = [&](const char* key) {
+      const auto it = extra.doubles.find(key);
+      return it != extra.doubles.end() && !it->second.empty() ? it->second.front() : 0.0;
+    };
+    summary.e0 = value("e0");
+    summary.z0 = value("Z");
+    summary.z_mech = value("Z_mech");
+    summary.unbalanced = value("unbalanced");
+    summary.final_p = value("p");
+    summary.steps = st.clock.step;
+    summary.wall = value("wall_time");
     summary.status = "done (earlier run)";
     return true;
   }
@@ -435,12 +445,16 @@ bool Runner::prepare(double p0, Summary& summary) {
   extra.doubles["Z"] = {m.z};
   extra.doubles["Z_mech"] = {m.z_mech};
   extra.doubles["unbalanced"] = {m.unbalanced};
+  extra.doubles["p"] = {m.inv.p};
   extra.strings["config"] = plan_.config.text;
   save(sample, st, extra, timer);
   std::error_code ignore;
   fs::remove(ckpt, ignore);
   summary.e0 = m.void_ratio;
   summary.z0 = m.z;
+  summary.z_mech = m.z_mech;
+  summary.unbalanced = m.unbalanced;
+  summary.final_p = m.inv.p;
   summary.steps = st.clock.step;
   summary.wall = timer.elapsed();
   summary.status = "done";
@@ -533,9 +547,6 @@ void Runner::shear(const TestSpec& test, Summary& summary) {
   std::uint64_t rows = 0;
   Measures m;
   AccuracyWatch watch(test.name, log_);
-  if (plan_.config.dt_fraction > 0.3)
-    log_.line(test.name + ": warning: time.dt_fraction = " + num(plan_.config.dt_fraction) +
-              " > 0.3 of the Rayleigh time: contact collisions resolved by few steps");
   const auto row = [&]() {
     m = measure(world.model(), world.state(), world.executor(), mo);
     check_finite(world.state(), m);
@@ -706,7 +717,7 @@ Plan make_plan(Config config_in, const Options& options) {
 
 // The files a run writes into the output directory.
 std::vector<fs::path> run_files(const Plan& plan) {
-  std::vector<fs::path> files{plan.out / "index.csv"};
+  std::vector<fs::path> files{plan.out / "index.csv", plan.out / "samples.csv"};
   for (double p0 : plan.p0) {
     const std::string tag = p0_tag(p0);
     for (const char* f : {"sample-", "prepare-"}) files.push_back(plan.out / (f + tag + ".h5"));
@@ -732,9 +743,23 @@ void write_index(const Plan& plan, const std::vector<Summary>& prep, const std::
           << num(s.final_eta) << ',' << num(s.final_p) << ',' << num(s.final_e) << ',' << num(s.final_strain) << ','
           << s.steps << ',' << num(s.wall) << '\n';
     }
-    (void)prep;
   }
   fs::rename(tmp, path);
+  // One row per sample: the preparation's end state, which every test on it starts from.
+  const fs::path samples = plan.out / "samples.csv";
+  const fs::path samples_tmp = plan.out / "samples.csv.tmp";
+  {
+    std::ofstream out(samples_tmp);
+    out << "sample,p0_Pa,file,status,p_Pa,e0,Z,Z_mech,unbalanced,steps,wall_s\n";
+    for (std::size_t k = 0; k < prep.size(); ++k) {
+      const Summary& s = prep[k];
+      const std::string tag = p0_tag(plan.p0[k]);
+      out << "sample-" << tag << ',' << num(plan.p0[k]) << ",sample-" << tag << ".h5," << s.status << ',' << num(s.final_p)
+          << ',' << num(s.e0) << ',' << num(s.z0) << ',' << num(s.z_mech) << ',' << num(s.unbalanced) << ',' << s.steps << ','
+          << num(s.wall) << '\n';
+    }
+  }
+  fs::rename(samples_tmp, samples);
 }
 
 // Runs fn(k) for k in [0, n) on `workers` threads.
@@ -879,6 +904,9 @@ int triaxial_main(int argc, const char* const* argv, std::ostream& out, std::ost
   log.line("sandcell triaxial: " + plan.config.source + " -> " + plan.out.string() + ": " +
            std::to_string(plan.config.tests.size()) + " test(s), " + std::to_string(plan.p0.size()) + " sample(s), " +
            std::to_string(plan.config.parallel) + " at once x " + std::to_string(plan.job_threads) + " thread(s)");
+  if (plan.config.dt_fraction > 0.3)  // once per run: it concerns every stage
+    log.line("warning: time.dt_fraction = " + num(plan.config.dt_fraction) +
+             " > 0.3 of the Rayleigh time: contact collisions resolved by few steps");
   Runner runner(plan, log);
   std::vector<Summary> prep(plan.p0.size()), tests(plan.config.tests.size());
   std::vector<char> prepared(plan.p0.size(), 0);

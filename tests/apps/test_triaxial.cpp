@@ -192,6 +192,30 @@ TEST_CASE("triaxial: stop and --resume (other thread counts) is bitwise identica
   CHECK(first_difference(sa.contacts, sb.contacts) == "");
   CHECK(sa.cell.length == sb.cell.length);
   CHECK(sa.cell.rate == sb.cell.rate);
+  // samples.csv: the resumed run found its sample prepared and reports the same end state, read
+  // back from the sample file, as the run that prepared it.
+  const auto sample_row = [](const fs::path& csv) {
+    std::istringstream in(read(csv));
+    std::string header, row;
+    std::getline(in, header);
+    std::getline(in, row);
+    std::vector<std::string> fields;
+    std::istringstream cells(row);
+    for (std::string cell; std::getline(cells, cell, ',');) fields.push_back(cell);
+    return fields;
+  };
+  const std::vector<std::string> ra = sample_row(a / "samples.csv"), rb = sample_row(b / "samples.csv");
+  REQUIRE(ra.size() == 11);
+  REQUIRE(rb.size() == 11);
+  CHECK(ra[0] == "sample-p0_100kPa");
+  CHECK(ra[3] == "done");
+  CHECK(rb[3] == "done (earlier run)");
+  for (int f : {0, 1, 2, 4, 5, 6, 7, 8, 9}) {  // all but the status and the wall time
+    CAPTURE(f);
+    CHECK(ra[f] == rb[f]);
+  }
+  CHECK(ra[9] == std::to_string(pa.clock.step));
+  CHECK(std::stod(ra[4]) == doctest::Approx(1e5).epsilon(0.01));  // the preparation's criterion: 1 %
   CHECK(sa.clock.step == sb.clock.step);
   CHECK(first_difference(pa.particles, read_checkpoint(b / "sample-p0_100kPa.h5").particles) == "");
   // The results series too (wall time aside), row for row.
