@@ -618,13 +618,19 @@ def _savgol_window(n, rows, polyorder=2):
 
 
 def dilatancy_series(eps1, eps_v, eps_q, smooth=0.02, min_strain=0.01, min_deq=0.1,
-                     others=None, polyorder=2):
+                     others=None, polyorder=2, stress=None):
     """Dilatancy d = d eps_v / d eps_q from Savitzky-Golay derivatives.
 
     Derivatives against the row index over a window of `smooth` axial strain (converted to rows
     with the median axial strain increment per row); `others` (dict of arrays) are smoothed with
     the same window. Returns a dict: d, deq_de1, mask (points kept: eps1 >= min_strain and
     d eps_q/d eps1 >= min_deq), window_rows, and the smoothed `others`.
+    stress ([n, 6]: xx yy zz xy xz yz), when given, is smoothed with the same window too, and b
+    and theta are those of the smoothed tensor (keys b, theta; the smoothed rows' theta, if
+    `others` has it, moves to theta_rows): as for the critical point (detect_critical), the
+    rows' b is biased by the sorting of each row's principal stresses. The smoothed tensor is
+    sorted too, so the bias shrinks with its noise rather than vanishing (about 4x smaller for a
+    41-row window on the synthetic record of test_analyze.py).
     """
     eps1, eps_v, eps_q = (np.asarray(a, float) for a in (eps1, eps_v, eps_q))
     n = eps1.size
@@ -656,6 +662,20 @@ def dilatancy_series(eps1, eps_v, eps_q, smooth=0.02, min_strain=0.01, min_deq=0
         if good.sum() >= n // 2 + 1:  # fill isolated gaps (e.g. theta at q = 0), then smooth
             v = np.interp(idx, idx[good], v[good])
             out[k] = signal.savgol_filter(v, w, polyorder)
+    if stress is not None:
+        st = np.asarray(stress, float)
+        if st.ndim == 2 and st.shape == (n, 6) and np.isfinite(st).all():
+            m = signal.savgol_filter(st, w, polyorder, axis=0)
+            tensor = np.stack([np.stack([m[:, 0], m[:, 3], m[:, 4]], -1),
+                               np.stack([m[:, 3], m[:, 1], m[:, 5]], -1),
+                               np.stack([m[:, 4], m[:, 5], m[:, 2]], -1)], -2)
+            s = np.linalg.eigvalsh(tensor)[:, ::-1]  # s1 >= s2 >= s3
+            with np.errstate(divide="ignore", invalid="ignore"):
+                b = np.where(s[:, 0] > s[:, 2], (s[:, 1] - s[:, 2]) / (s[:, 0] - s[:, 2]), NAN)
+            if "theta" in out:
+                out["theta_rows"] = out["theta"]
+            out["b"] = b
+            out["theta"] = lode_from_b(b)
     return out
 
 
@@ -858,7 +878,8 @@ def analyze_tests(tests, opt):
     for t in tests:
         dil = dilatancy_series(t["eps1"], t["eps_v"], t["eps_q"], smooth=opt.smooth,
                                min_strain=opt.min_strain, min_deq=opt.min_deq,
-                               others={k: t[k] for k in ("eta", "p", "e", "theta")})
+                               others={k: t[k] for k in ("eta", "p", "e", "theta")},
+                               stress=t.get("stress"))
         dil["psi"] = dil["e"] - csl_e(dil["p"], cpar["e_gamma"], cpar["lambda"], cpar["xi"])
         t["dil"] = dil
         m = dil["mask"]
