@@ -68,6 +68,8 @@ struct ServoSettings {
   StressPath path = StressPath::fixed;
   std::array<AxisControl, 3> control{AxisControl::strain, AxisControl::strain, AxisControl::strain};
   Vec3 strain_rate = Vec3::Zero();  // 1/s, compression positive, for strain-controlled axes
+  double ramp_time = 0.0;           // s, strain-controlled rates rise linearly from 0 at clock time 0
+                                    // to strain_rate at ramp_time (0: the full rate from the start)
   Vec3 target = Vec3::Zero();       // Pa, per-axis targets of the `fixed` path
   double p = 0.0;                   // Pa, mean stress of the isotropic and constant-p paths
   double b = 0.0;                   // -, intermediate principal stress ratio, in [0, 1]

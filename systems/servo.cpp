@@ -39,13 +39,14 @@ double stress_scale(const ServoSettings& servo) {
 }
 }  // namespace
 
-Vec3 servo_strain_rates(const ServoSettings& servo, const Vec3& sigma, Vec3* integral, double interval) {
+Vec3 servo_strain_rates(const ServoSettings& servo, const Vec3& sigma, Vec3* integral, double interval, double time) {
   const Vec3 target = path_targets(servo, sigma[0]);
   const double floor = 1e-3 * stress_scale(servo);
   Vec3 rate;
   for (int k = 0; k < 3; ++k) {
     if (servo.control[k] == AxisControl::strain) {
-      rate[k] = servo.strain_rate[k];
+      rate[k] = servo.ramp_time > 0.0 && time < servo.ramp_time ? servo.strain_rate[k] * (time / servo.ramp_time)
+                                                                 : servo.strain_rate[k];
       continue;
     }
     const double error = (target[k] - sigma[k]) / std::max(std::abs(target[k]), floor);
@@ -70,7 +71,7 @@ void Servo::run(const Model& model, State& state, Scratch& scratch, Executor&) {
   const MeasuredStress& measured = scratch.read<Component::stress>();
   Cell& cell = state.write<Component::cell>();
   const Vec3 rate = servo_strain_rates(model.servo, measured.stress.diagonal(), &cell.servo_integral,
-                                       model.dt * model.servo.interval);
+                                       model.dt * model.servo.interval, state.clock.time);
   cell.rate = -rate;  // D_kk is tension positive
 }
 

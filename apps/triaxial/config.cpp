@@ -320,6 +320,7 @@ Config parse_config(const std::string& text, const std::string& source) {
     Section s(table("shear"), "shear", source);
     ShearConfig& h = c.shear;
     s.positive("strain_rate", h.strain_rate, "1/s");
+    s.number("ramp_strain", h.ramp_strain, 0.0, 1.0, "must be in [0, 1] (axial strain of the rate ramp; 0: none)");
     s.number("gain", h.gain, 0.0, 1e9, "must be >= 0 1/s (0: derived)");
     s.number("integral_time", h.integral_time, 0.0, 1e9, "must be >= 0 s (0: derived)");
     s.number("max_rate", h.max_rate, 0.0, 1e9, "must be >= 0 1/s (0: 10 x strain_rate)");
@@ -404,9 +405,16 @@ Config parse_config(const std::string& text, const std::string& source) {
     s.check_unknown();
   }
   if (c.shear.max_rate == 0.0) c.shear.max_rate = 10.0 * c.shear.strain_rate;
-  for (const TestSpec& t : c.tests)
+  for (const TestSpec& t : c.tests) {
     if (t.path == ShearPath::strain && c.shear.steps == 0)
       throw ConfigError(source + ": shear.steps = 0: path \"strain\" needs a number of steps >= 1");
+    if (t.path == ShearPath::strain && c.shear.ramp_strain > 0.0)
+      throw ConfigError(source + ": shear.ramp_strain = " + num(c.shear.ramp_strain) +
+                        ": the ramp applies to the stress paths' axial rate; path \"strain\" allows 0 only");
+  }
+  if (c.shear.ramp_strain >= c.shear.max_axial_strain)
+    throw ConfigError(source + ": shear.ramp_strain = " + num(c.shear.ramp_strain) + ": must be below shear.max_axial_strain = " +
+                      num(c.shear.max_axial_strain));
   return c;
 }
 

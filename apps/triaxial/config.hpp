@@ -39,6 +39,7 @@ enum class ShearPath { constant_p, constant_sigma3, strain };
 
 struct ShearConfig {
   double strain_rate = 1.0;       // 1/s, axial (axis 1) compression rate of the stress paths
+  double ramp_strain = 0.0;       // -, axial strain over which the rate rises linearly from 0 (0: none)
   double gain = 0.0;              // 1/s, lateral servo gain (0: derived, see README)
   double integral_time = 0.0;     // s, integral time of the lateral servo (0: derived, see README)
   double max_rate = 0.0;          // 1/s, cap on lateral rates (0: 10 x strain_rate)

@@ -302,6 +302,8 @@ Model shear_model(const Plan& plan, const TestSpec& test) {
   s.path = test.path == ShearPath::constant_p ? StressPath::constant_p_b : StressPath::constant_sigma3_b;
   s.control = {AxisControl::strain, AxisControl::stress, AxisControl::stress};
   s.strain_rate = Vec3(h.strain_rate, 0.0, 0.0);
+  // A linear ramp over ramp_strain of (logarithmic) axial strain takes 2 ramp_strain / rate.
+  s.ramp_time = 2.0 * h.ramp_strain / h.strain_rate;
   s.p = test.p0;
   s.sigma3 = test.p0;
   s.b = test.b;
@@ -531,7 +533,7 @@ void Runner::shear(const TestSpec& test, Summary& summary) {
     state.cell.length0 = state.cell.length;
     state.cell.servo_integral.setZero();  // servo state resets between stages
     if (test.path == ShearPath::strain) state.cell.rate = -h.strain_rates;
-    else state.cell.rate = Vec3(-h.strain_rate, 0.0, 0.0);
+    else state.cell.rate = Vec3(h.ramp_strain > 0.0 ? 0.0 : -h.strain_rate, 0.0, 0.0);
     results.emplace(ResultsFile::create(path, plan_.config.text,
                                         {{"job", test.name}, {"stage", "shear"}, {"path", path_name(test.path)},
                                          {"b", num(test.b)}, {"p0", num(test.p0)}}));

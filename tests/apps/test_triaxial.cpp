@@ -9,6 +9,7 @@
 #include <doctest/doctest.h>
 #include <hdf5.h>
 
+#include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
@@ -133,6 +134,7 @@ TEST_CASE("triaxial: each class of bad input exits 2 naming the key, and clobber
       {"bad gradation", with("sample", "distribution = \"gradation\"\ngradation = [[0.005, 0], [0.004, 100]]"),
        "diameters must increase"},
       {"missing packing file", with("sample", "file = \"/nonexistent/packing.txt\""), "sample.file"},
+      {"ramp longer than the test", with("shear", "ramp_strain = 0.05"), "shear.ramp_strain = 0.05: must be below shear.max_axial_strain = 0.03"},
   };
   for (const Case& c : cases) {
     const std::string what = c.what;
@@ -257,6 +259,36 @@ TEST_CASE("triaxial: the embedded default runs end to end and writes the documen
       ++checked;
     }
   CHECK(checked >= 3);
+  fs::remove_all(dir);
+}
+
+TEST_CASE("triaxial: shear.ramp_strain raises the axial rate linearly: eps1 = rate t^2 / 2T, then rate (t - T/2)") {
+  // ramp_strain 0.01 at rate 2 /s: T = 2 x 0.01 / 2 = 0.01 s. The servo sets the rate at the end
+  // of a step, from the clock time then, for the next step: the strain is a sum over steps that
+  // lags the integral by 1.5 steps, a relative error of -3 / n after n steps during the ramp (as
+  // measured) and less after it. Bound: 4 / n (n >= 100 at the first row, so 4 % at most).
+  const fs::path dir = fresh_dir("ramp");
+  std::string config = k_small;
+  config.insert(config.find("strain_rate = 2.0"), "ramp_strain = 0.01\n");
+  write(dir / "ramp.toml", config);
+  const Result r = run({(dir / "ramp.toml").string(), "--out", dir.string()});
+  INFO(r.out, r.err);
+  REQUIRE(r.code == 0);
+  const fs::path results = dir / "p-b0.50-p0_100kPa.h5";
+  const std::vector<double> time = dataset(results, "/series/time");
+  const std::vector<double> step = dataset(results, "/series/step");
+  const std::vector<double> strain = dataset(results, "/series/strain");  // (rows, 3), logarithmic
+  const double rate = 2.0, ramp = 0.01;
+  int during = 0, after = 0;
+  for (std::size_t k = 1; k < time.size(); ++k) {
+    const double t = time[k], eps1 = strain[3 * k];
+    const double expected = t < ramp ? rate * t * t / (2.0 * ramp) : rate * (t - ramp / 2.0);
+    CAPTURE(t);
+    CHECK(std::abs(eps1 - expected) <= 4.0 / step[k] * expected);
+    (t < ramp ? during : after) += 1;
+  }
+  CHECK(during >= 3);
+  CHECK(after >= 3);
   fs::remove_all(dir);
 }
 

@@ -88,6 +88,24 @@ TEST_CASE("servo control law: the integral term advances by err dt and winds up 
   CHECK(servo_strain_rates(s, Vec3(1e9, 95.0, 100.0), &integral, 0.1)[1] == doctest::Approx(0.5).epsilon(1e-15));
 }
 
+TEST_CASE("servo control law: a strain-controlled axis ramps linearly to its rate over ramp_time, then holds it") {
+  ServoSettings s;
+  s.path = StressPath::fixed;
+  s.control = {AxisControl::strain, AxisControl::stress, AxisControl::stress};
+  s.strain_rate = Vec3(0.4, 0.0, 0.0);
+  s.target = Vec3(0.0, 100.0, 100.0);
+  s.gain = 10.0;
+  s.max_rate = 2.0;
+  s.ramp_time = 2.0;
+  const Vec3 sigma(1e9, 95.0, 100.0);
+  CHECK(servo_strain_rates(s, sigma, nullptr, 0.0, 0.0)[0] == 0.0);
+  CHECK(servo_strain_rates(s, sigma, nullptr, 0.0, 0.5)[0] == doctest::Approx(0.1).epsilon(1e-15));
+  CHECK(servo_strain_rates(s, sigma, nullptr, 0.0, 2.0)[0] == 0.4);
+  CHECK(servo_strain_rates(s, sigma, nullptr, 0.0, 7.0)[0] == 0.4);
+  // The stress-controlled axes do not ramp: the servo acts at full gain from the start.
+  CHECK(servo_strain_rates(s, sigma, nullptr, 0.0, 0.0)[1] == doctest::Approx(0.5).epsilon(1e-15));
+}
+
 namespace {
 
 // A small dense-ish sample: jittered lattice of 6^3 spheres near contact, frictional, with rolling.
