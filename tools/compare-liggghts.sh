@@ -2,11 +2,11 @@
 # Runs LIGGGHTS (Debian package `liggghts`) and dem-bench one after the other on the same scene,
 # with the same settings and core count, and prints both throughputs, their ratio, and the mean
 # stress and contacts per particle of each code. Not a test: a side-by-side measurement.
-#   tools/compare-liggghts.sh [STEPS=5000] [CORES=2] [ERATE=0 (scene A) | 0.9391 (scene B)]
+#   tools/compare-liggghts.sh [STEPS=20000, the scenes' length] [CORES=2] [ERATE=0 (scene A) | 0.9391 (scene B)]
 set -euo pipefail
 here=$(cd "$(dirname "$0")" && pwd)
 root=$(cd "$here/.." && pwd)
-steps=${1:-5000}
+steps=${1:-20000}
 cores=${2:-2}
 erate=${3:-0}
 bench="$root/build/release/apps/dem-bench/dem-bench"
