@@ -48,14 +48,22 @@ TEST_CASE("servo path targets: constant sigma3, constant b by hand") {
   CHECK(path_targets(s, 1.0) == Vec3::Constant(7.0));
 }
 
-TEST_CASE("servo control law: proportional, capped, strain-controlled axes untouched") {
+namespace {
+// Axis 1 strain controlled at `axial` 1/s; axes 2 and 3 held at 100 Pa with gain 10 /s, capped at 2 /s.
+ServoSettings lateral_servo(double axial) {
   ServoSettings s;
   s.path = StressPath::fixed;
   s.control = {AxisControl::strain, AxisControl::stress, AxisControl::stress};
-  s.strain_rate = Vec3(0.3, 0.0, 0.0);
+  s.strain_rate = Vec3(axial, 0.0, 0.0);
   s.target = Vec3(0.0, 100.0, 100.0);
   s.gain = 10.0;
   s.max_rate = 2.0;
+  return s;
+}
+}  // namespace
+
+TEST_CASE("servo control law: proportional, capped, strain-controlled axes untouched") {
+  const ServoSettings s = lateral_servo(0.3);
   // Axis 2: error (100 - 95)/100 = 0.05 -> 0.5 1/s (compress). Axis 3: error -0.5 -> -5, capped -2.
   const Vec3 r = servo_strain_rates(s, Vec3(1e9, 95.0, 150.0));
   CHECK(r[0] == 0.3);
@@ -64,12 +72,7 @@ TEST_CASE("servo control law: proportional, capped, strain-controlled axes untou
 }
 
 TEST_CASE("servo control law: the integral term advances by err dt and winds up only inside the cap") {
-  ServoSettings s;
-  s.path = StressPath::fixed;
-  s.control = {AxisControl::strain, AxisControl::stress, AxisControl::stress};
-  s.target = Vec3(0.0, 100.0, 100.0);
-  s.gain = 10.0;
-  s.max_rate = 2.0;
+  ServoSettings s = lateral_servo(0.0);
   s.integral_time = 0.5;
   Vec3 integral(0.0, 0.01, 0.0);
   // Axis 2: err 0.05, I = 0.01 + 0.05 * 0.1 = 0.015, rate 10 (0.05 + 0.015/0.5) = 0.8.
@@ -89,13 +92,7 @@ TEST_CASE("servo control law: the integral term advances by err dt and winds up 
 }
 
 TEST_CASE("servo control law: a strain-controlled axis ramps linearly to its rate over ramp_time, then holds it") {
-  ServoSettings s;
-  s.path = StressPath::fixed;
-  s.control = {AxisControl::strain, AxisControl::stress, AxisControl::stress};
-  s.strain_rate = Vec3(0.4, 0.0, 0.0);
-  s.target = Vec3(0.0, 100.0, 100.0);
-  s.gain = 10.0;
-  s.max_rate = 2.0;
+  ServoSettings s = lateral_servo(0.4);
   s.ramp_time = 2.0;
   const Vec3 sigma(1e9, 95.0, 100.0);
   CHECK(servo_strain_rates(s, sigma, nullptr, 0.0, 0.0)[0] == 0.0);
