@@ -101,7 +101,7 @@ struct HertzMindlinEvaluator {
 // 1.96 s per 1000 steps on dense-20k, 1 thread).
 constexpr std::size_t k_block = 64;
 static_assert(k_contact_grain % k_block == 0, "blocks must not straddle parallel chunks");
-static_assert(k_block < 256, "phase 3 keeps the visiting order in bytes and counts in 12 bits");
+static_assert(k_block < 256, "phase 3 keeps the visiting order as byte offsets");
 
 struct alignas(64) Block {
   double rx[k_block], ry[k_block], rz[k_block];  // m, branch vector
