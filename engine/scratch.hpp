@@ -75,7 +75,6 @@ struct ContactScratch {
   std::vector<std::uint8_t> order;   // (m) -, per block, a permutation of its pair offsets 0..63
   std::vector<std::uint8_t> stale;   // (blocks) -, 1: a regime in the block changed, sort it again
   std::vector<std::uint8_t> sorted;  // (blocks) -, 1: visit in `order`; 0: no pair at a cap, array order
-  std::size_t pairs = 0;             // size of the list the orders were made for
 };
 
 template <Component C>

@@ -140,13 +140,14 @@ void contact_loop(const Model& model, State& state, Scratch& scratch, Executor& 
   // cdt has no history: like none, it allocates none.
   constexpr bool rolling_history = Roll == RollingModel::epsd2 || Roll == RollingModel::epsd;
   if constexpr (rolling_history) rolling.resize(m);
-  ContactScratch& hint = scratch.contact;  // visiting order of phase 3 (hints, ContactScratch)
-  if (hint.pairs != m || hint.order.size() != m) {
+  // Visiting order of phase 3 (hints, ContactScratch). A new list of the same length keeps them:
+  // its blocks have the same lengths, so every order is still a permutation of its block.
+  ContactScratch& hint = scratch.contact;
+  if (hint.order.size() != m) {
     hint.regime.assign(m, 0);
     hint.order.assign(m, 0);
     hint.stale.assign((m + k_block - 1) / k_block, 1);
     hint.sorted.assign((m + k_block - 1) / k_block, 0);
-    hint.pairs = m;
   }
 
   const Vec3 rate = cell.rate;

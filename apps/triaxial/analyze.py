@@ -172,6 +172,18 @@ def lode_from_b(b):
     return np.arctan2(np.sqrt(3.0) * b, 2.0 - b)
 
 
+def b_of_stress(stress):
+    """b = (s2 - s3)/(s1 - s3) of stress tensors given as [..., 6] (xx yy zz xy xz yz); NaN where
+    s1 = s3."""
+    m = np.asarray(stress, float)
+    tensor = np.stack([np.stack([m[..., 0], m[..., 3], m[..., 4]], -1),
+                       np.stack([m[..., 3], m[..., 1], m[..., 5]], -1),
+                       np.stack([m[..., 4], m[..., 5], m[..., 2]], -1)], -2)
+    s = np.linalg.eigvalsh(tensor)[..., ::-1]  # s1 >= s2 >= s3
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.where(s[..., 0] > s[..., 2], (s[..., 1] - s[..., 2]) / (s[..., 0] - s[..., 2]), NAN)
+
+
 def dilatancy_li(eta, psi, M, d0, m):
     """Li & Dafalias (2000): d = d0/M (M exp(m psi) - eta)."""
     return d0 / M * (M * np.exp(m * np.asarray(psi, float)) - np.asarray(eta, float))
@@ -567,11 +579,8 @@ def detect_critical(eps1, series, window=0.05, tol_eta=0.02, tol_p=0.02, tol_e=0
     # 2-4.6 deg below 60). q and p are invariants, unbiased row by row.
     stress = np.asarray(series["stress"], float)[sel] if "stress" in series and rows else None
     if stress is not None and stress.ndim == 2 and stress.shape[1] == 6 and np.isfinite(stress).all():
-        m = stress.mean(axis=0)  # xx yy zz xy xz yz
-        s = np.sort(np.linalg.eigvalsh(np.array([[m[0], m[3], m[4]], [m[3], m[1], m[5]],
-                                                  [m[4], m[5], m[2]]])))[::-1]
         point["b_rows"], point["theta_rows"] = point["b"], point["theta"]
-        point["b"] = float((s[1] - s[2]) / (s[0] - s[2])) if s[0] > s[2] else NAN
+        point["b"] = float(b_of_stress(stress.mean(axis=0)))
         point["theta"] = float(lode_from_b(point["b"]))
     out["point"] = point
     for name, tol, relative in (("eta", tol_eta, True), ("p", tol_p, True),
@@ -665,13 +674,7 @@ def dilatancy_series(eps1, eps_v, eps_q, smooth=0.02, min_strain=0.01, min_deq=0
     if stress is not None:
         st = np.asarray(stress, float)
         if st.ndim == 2 and st.shape == (n, 6) and np.isfinite(st).all():
-            m = signal.savgol_filter(st, w, polyorder, axis=0)
-            tensor = np.stack([np.stack([m[:, 0], m[:, 3], m[:, 4]], -1),
-                               np.stack([m[:, 3], m[:, 1], m[:, 5]], -1),
-                               np.stack([m[:, 4], m[:, 5], m[:, 2]], -1)], -2)
-            s = np.linalg.eigvalsh(tensor)[:, ::-1]  # s1 >= s2 >= s3
-            with np.errstate(divide="ignore", invalid="ignore"):
-                b = np.where(s[:, 0] > s[:, 2], (s[:, 1] - s[:, 2]) / (s[:, 0] - s[:, 2]), NAN)
+            b = b_of_stress(signal.savgol_filter(st, w, polyorder, axis=0))
             if "theta" in out:
                 out["theta_rows"] = out["theta"]
             out["b"] = b

@@ -352,9 +352,9 @@ bool Runner::prepare(double p0, Summary& summary) {
   if (fs::exists(sample)) {  // only reachable with --resume: a finished preparation
     CheckpointExtra extra;
     const State st = read_checkpoint(sample, &extra);
-    const auto value = [&](const char* key) {
+    const auto value = [&](const char* key) {  // NaN when a sample file of an older version lacks it
       const auto it = extra.doubles.find(key);
-      return it != extra.doubles.end() && !it->second.empty() ? it->second.front() : 0.0;
+      return it != extra.doubles.end() && !it->second.empty() ? it->second.front() : std::nan("");
     };
     summary.e0 = value("e0");
     summary.z0 = value("Z");
@@ -731,11 +731,21 @@ std::vector<fs::path> run_files(const Plan& plan) {
   return files;
 }
 
-void write_index(const Plan& plan, const std::vector<Summary>& prep, const std::vector<Summary>& tests) {
-  const fs::path path = plan.out / "index.csv";
-  const fs::path tmp = plan.out / "index.csv.tmp";
+// Writes `name` in the output directory through a temporary file renamed over it, so a reader
+// never sees half a file.
+template <class Write>
+void write_replacing(const Plan& plan, const std::string& name, Write write) {
+  const fs::path path = plan.out / name;
+  const fs::path tmp = plan.out / (name + ".tmp");
   {
     std::ofstream out(tmp);
+    write(out);
+  }
+  fs::rename(tmp, path);
+}
+
+void write_index(const Plan& plan, const std::vector<Summary>& prep, const std::vector<Summary>& tests) {
+  write_replacing(plan, "index.csv", [&](std::ostream& out) {
     out << "test,path,b,p0_Pa,file,status,e0,Z0,peak_eta,eps1_at_peak,final_eta,final_p_Pa,final_e,final_eps1,steps,wall_s\n";
     for (std::size_t k = 0; k < tests.size(); ++k) {
       const TestSpec& t = plan.config.tests[k];
@@ -745,13 +755,9 @@ void write_index(const Plan& plan, const std::vector<Summary>& prep, const std::
           << num(s.final_eta) << ',' << num(s.final_p) << ',' << num(s.final_e) << ',' << num(s.final_strain) << ','
           << s.steps << ',' << num(s.wall) << '\n';
     }
-  }
-  fs::rename(tmp, path);
+  });
   // One row per sample: the preparation's end state, which every test on it starts from.
-  const fs::path samples = plan.out / "samples.csv";
-  const fs::path samples_tmp = plan.out / "samples.csv.tmp";
-  {
-    std::ofstream out(samples_tmp);
+  write_replacing(plan, "samples.csv", [&](std::ostream& out) {
     out << "sample,p0_Pa,file,status,p_Pa,e0,Z,Z_mech,unbalanced,steps,wall_s\n";
     for (std::size_t k = 0; k < prep.size(); ++k) {
       const Summary& s = prep[k];
@@ -760,8 +766,7 @@ void write_index(const Plan& plan, const std::vector<Summary>& prep, const std::
           << ',' << num(s.e0) << ',' << num(s.z0) << ',' << num(s.z_mech) << ',' << num(s.unbalanced) << ',' << s.steps << ','
           << num(s.wall) << '\n';
     }
-  }
-  fs::rename(samples_tmp, samples);
+  });
 }
 
 // Runs fn(k) for k in [0, n) on `workers` threads.
