@@ -825,7 +825,7 @@ static int script_main(const std::string& command, int argc, const char* const* 
 int triaxial_main(int argc, const char* const* argv, std::ostream& out, std::ostream& err) {
   // `triaxial analyze RESULTS... [--out DIR]`: the critical-state and dilatancy analysis (analyze.py).
   if (argc >= 2 && std::string(argv[1]) == "analyze") return script_main("analyze", argc - 1, argv + 1, err);
-  // `triaxial study CONFIG [--preset quick|full]`: the speed-accuracy study (study.py).
+  // `triaxial study CONFIG [--preset quick|full|size]`: the speed-accuracy study (study.py).
   if (argc >= 2 && std::string(argv[1]) == "study") return script_main("study", argc - 1, argv + 1, err);
   Options options;
   bool print_default = false;
@@ -833,7 +833,7 @@ int triaxial_main(int argc, const char* const* argv, std::ostream& out, std::ost
   app.footer("Analysis of results (critical state line, M(theta), dilatancy; report and figures):\n"
              "  triaxial analyze RESULTS.h5|DIR... [--out DIR]   (triaxial analyze --help for its options)\n"
              "Speed versus accuracy (timestep, inertial number, stiffness, restitution, N; table and Pareto figure):\n"
-             "  triaxial study [CONFIG] [--preset quick|full] [--out DIR]   (triaxial study --help)");
+             "  triaxial study [CONFIG] [--preset quick|full|size] [--out DIR]   (triaxial study --help)");
   app.add_option("config", options.config_path, "TOML configuration (none: the embedded default)");
   app.add_option("--threads", options.threads, "worker threads in all (default: all cores)")->check(CLI::Range(1, 1024));
   app.add_option("--out", options.out, "output directory (default: results/<config name>)");

@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """Speed versus accuracy of a sandcell triaxial test: what each numerical setting costs and buys.
 
-    study.py [CONFIG] [--preset quick|full] [--out DIR] [--threads T] [--tolerance peak=X,res=X,e=X,d=X]
+    study.py [CONFIG] [--preset quick|full|size] [--out DIR] [--threads T] [--tolerance peak=X,res=X,e=X,d=X]
              [--triaxial PATH]
 
 Takes the first test of CONFIG (default: the embedded default of `triaxial`; its p0, path and b,
@@ -34,6 +34,9 @@ Presets (reference first):
   full    2000 spheres to 30 %; dt 0.05 | 0.1 0.2 0.35 0.5; I 1e-5 | 1e-4 1e-3 3e-3 1e-2;
           E x 1 | 1/10 1/100; e 0.5 | 0.1 0.9; N 2000 | 500 1000 5000 20000; seeds 2, 3, 4.
           The I = 1e-5 reference alone is ~2e8 steps: days on 16 cores. Axes can be narrowed.
+  size    the sample size on its own: N 500, 1000, 2000, 5000, 20000 x seeds 1, 2, 3 at dt 0.2 dt_R and
+          I 1e-3, to 20 %; every run prepares its own sample. Per N: mean and standard deviation over
+          the seeds of every measure, and the size error |mean(N) - mean(20000)|. ~1 h on 2 cores.
 Exit status: 0 done; 2 bad input; 1 a run failed (its log is in <out>/<run>/log.txt).
 """
 import argparse
@@ -54,6 +57,11 @@ PRESETS = {
     # A seconds-long pipeline check (tests/CMakeLists.txt, label analysis): not physics.
     "smoke": dict(count=120, strain=0.03, dt=[0.2, 0.4], I=[1e-2, 3e-2], E=[1.0, 0.3], e=[0.5, 0.9], N=[120, 160],
                   seeds=[2]),
+    # Sample size and seed scatter at one practical setting (size_study): N x seeds.
+    "size": dict(kind="size", count=2000, strain=0.2, dt=[0.2], I=[1e-3], E=[1.0], e=[0.5],
+                 N=[500, 1000, 2000, 5000, 20000], seeds=[1, 2, 3]),
+    "size-smoke": dict(kind="size", count=120, strain=0.03, dt=[0.2], I=[1e-2], E=[1.0], e=[0.5], N=[120, 160],
+                       seeds=[1, 2]),
     "full": dict(count=2000, strain=0.3, dt=[0.05, 0.1, 0.2, 0.35, 0.5], I=[1e-5, 1e-4, 1e-3, 3e-3, 1e-2],
                  E=[1.0, 0.1, 0.01], e=[0.5, 0.1, 0.9], N=[2000, 500, 1000, 5000, 20000], seeds=[2, 3, 4]),
 }
@@ -237,6 +245,129 @@ def pareto(points):
     return front
 
 
+def mean_std(vals):
+    """Mean and sample standard deviation (NaN for a single value) of the finite values."""
+    vals = [v for v in vals if math.isfinite(v)]
+    if not vals:
+        return float("nan"), float("nan")
+    mean = sum(vals) / len(vals)
+    if len(vals) < 2:
+        return mean, float("nan")
+    return mean, math.sqrt(sum((v - mean) ** 2 for v in vals) / (len(vals) - 1))
+
+
+def prep_wall(out):
+    """Wall seconds of the run's sample preparation (samples.csv; NaN when the run found it prepared)."""
+    path = os.path.join(out, "samples.csv")
+    rows = list(csv.DictReader(open(path))) if os.path.exists(path) else []
+    return float(rows[0]["wall_s"]) if rows else float("nan")
+
+
+def size_study(args, preset, base):
+    """N x seeds at one setting: how each measure's mean and its sample-to-sample scatter move with N.
+
+    The largest N is the reference: |mean(N) - mean(N_max)| is the size error of N, and the standard
+    deviation over the seeds at N is what one test of that size can resolve. Every run prepares its
+    own sample (the seed is the sample's), so the scatter is that of the whole test.
+    """
+    seeds = preset["seeds"]
+    ref = dict(dt=preset["dt"][0], I=preset["I"][0], E=preset["E"][0], e=preset["e"][0], N=preset["count"],
+               seed=seeds[0])
+    os.makedirs(args.out, exist_ok=True)
+    runs = []
+    for n in preset["N"]:
+        for seed in seeds:
+            name = f"N{n}_seed{seed}"
+            cfg, rate = variant_config(base, preset, ref, N=n, seed=seed)
+            row, out = run_variant(name, cfg, args)
+            m = metrics(row, out, args.window)
+            m.update(name=name, N=n, seed=seed, rate=rate, prep_wall=prep_wall(out), Z0=float(row["Z0"]))
+            m["psteps_per_s"] = n * m["steps"] / m["wall"] if m["wall"] > 0 else float("nan")
+            m["cost"] = n * m["steps"] / max(m["strain"], 1e-12)
+            runs.append(m)
+            print(f"{PROG}: {name}: peak q/p {m['peak_eta']:.4f}, residual q/p {m['res_eta']:.4f}, e {m['res_e']:.4f}, "
+                  f"max -d {m['max_dilation']:.3f}, {m['steps']:.0f} steps, {m['wall']:.1f} s", flush=True)
+
+    keys = [k for k, _ in METRICS] + ["e0", "Z0", "peak_strain"]
+    groups = []
+    for n in preset["N"]:
+        sel = [m for m in runs if m["N"] == n]
+        g = dict(N=n, seeds=len(sel), wall=sum(m["wall"] for m in sel) / len(sel),
+                 prep_wall=sum(m["prep_wall"] for m in sel) / len(sel),
+                 cost=sum(m["cost"] for m in sel) / len(sel),
+                 psteps_per_s=sum(m["psteps_per_s"] for m in sel) / len(sel))
+        for k in keys:
+            g[k], g[f"std_{k}"] = mean_std([m[k] for m in sel])
+        groups.append(g)
+    top = groups[-1]
+    for g in groups:
+        for k in keys:
+            g[f"err_{k}"] = abs(g[k] - top[k])
+
+    fields = ["name", "N", "seed", "rate", "e0", "Z0", "prep_wall", "peak_eta", "peak_strain", "res_eta", "res_e", "max_dilation", "I",
+              "max_overlap", "steps", "wall", "psteps_per_s", "cost"]
+    with open(os.path.join(args.out, "study.csv"), "w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=fields, extrasaction="ignore")
+        w.writeheader()
+        w.writerows(runs)
+    with open(os.path.join(args.out, "study.json"), "w") as f:
+        json.dump(dict(preset=args.preset, setting=ref, window=args.window, runs=runs, by_size=groups), f, indent=1)
+
+    cmd = f"triaxial study{' ' + args.config if args.config else ''} --preset {args.preset} --threads {args.threads}"
+    labels = dict(METRICS, e0="e0", Z0="Z0", peak_strain="eps1 at peak")
+    lines = [f"# Sample size: `{cmd}`", "",
+             f"Setting: dt = {ref['dt']} dt_R, I = {ref['I']:g} (axial rate {runs[0]['rate']:.3g} /s), E x {ref['E']:g}, "
+             f"e = {ref['e']}; {len(seeds)} samples (seeds {', '.join(map(str, seeds))}) per N, each prepared on its own "
+             f"and sheared to {preset['strain']} axial strain. Residual values: means over the last {args.window} of "
+             "axial strain. Per N: mean +- standard deviation over the seeds; size error: |mean - mean at the "
+             f"largest N ({top['N']})|.", "",
+             "| N | " + " | ".join(labels[k] for k in keys) + " | wall s, preparation + shearing | shearing M p-steps/s | "
+             "cost (p-steps per unit strain) |",
+             "|---" * (len(keys) + 4) + "|"]
+    for g in groups:
+        cells = [f"{g[k]:.4f} +- {g['std_' + k]:.4f}" for k in keys]
+        lines.append(f"| {g['N']} | " + " | ".join(cells) + f" | {g['prep_wall']:.0f} + {g['wall']:.0f} | {g['psteps_per_s'] / 1e6:.2f} | "
+                     f"{g['cost']:.3g} |")
+    lines += ["", "Size error |mean(N) - mean(N_max)| against the scatter of one test (standard deviation over the "
+              "seeds at N):", "",
+              "| N | " + " | ".join(f"{labels[k]}: error / scatter" for k, _ in METRICS) + " |",
+              "|---" * (len(METRICS) + 1) + "|"]
+    for g in groups:
+        lines.append(f"| {g['N']} | " + " | ".join(f"{g['err_' + k]:.4f} / {g['std_' + k]:.4f}" for k, _ in METRICS)
+                     + " |")
+    lines.append("")
+    with open(os.path.join(args.out, "study.md"), "w") as f:
+        f.write("\n".join(lines) + "\n")
+
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    fig, axs = plt.subplots(2, 3, figsize=(13, 7.5))
+    for ax, k in zip(axs.flat, [k for k, _ in METRICS] + ["e0", "wall"]):
+        if k == "wall":
+            ax.plot([m["N"] for m in runs], [m["wall"] for m in runs], "o", color="C0", ms=4, label="shearing")
+            ax.plot([m["N"] for m in runs], [m["prep_wall"] for m in runs], "^", color="C1", ms=4, label="preparation")
+            ax.set_yscale("log")
+            ax.set_ylabel("wall s per test")
+            ax.legend(fontsize=7)
+        else:
+            ax.plot([m["N"] for m in runs], [m[k] for m in runs], "o", color="0.6", ms=3, label="one sample")
+            ax.errorbar([g["N"] for g in groups], [g[k] for g in groups],
+                        yerr=[g["std_" + k] if math.isfinite(g["std_" + k]) else 0.0 for g in groups], color="C0",
+                        marker="s", ms=4, capsize=3, label="mean +- std over seeds")
+            ax.set_ylabel(labels[k])
+        ax.set_xscale("log")
+        ax.set_xlabel("N (spheres)")
+        ax.grid(True, which="both", alpha=0.3)
+    axs.flat[0].legend(fontsize=7)
+    fig.suptitle(f"sandcell sample size ({cmd})", fontsize=10)
+    fig.tight_layout()
+    for ext in ("png", "svg"):
+        fig.savefig(os.path.join(args.out, f"study.{ext}"), dpi=110)
+    print(f"{PROG}: wrote {os.path.join(args.out, 'study.md')} (+ csv, json, png, svg)")
+    return 0
+
+
 def main():
     ap = argparse.ArgumentParser(prog=PROG, description=__doc__.split("\n\n")[0],
                                  formatter_class=argparse.RawDescriptionHelpFormatter,
@@ -281,6 +412,8 @@ def main():
     args.window = min(args.window, preset["strain"] / 3.0)
     args.out = args.out or os.path.join("results", f"study-{args.preset}")
     base = base_config(args.config, args.triaxial)
+    if preset.get("kind") == "size":
+        return size_study(args, preset, base)
     seed0 = int(base.get("sample", {}).get("seed", 1))
     ref = dict(dt=preset["dt"][0], I=preset["I"][0], E=preset["E"][0], e=preset["e"][0], N=preset["count"], seed=seed0)
     if preset["N"][0] != preset["count"]:
