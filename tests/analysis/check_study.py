@@ -55,7 +55,8 @@ assert r.returncode == 0 and " --out " not in r.stdout, r.stdout
 r = subprocess.run([triaxial, "study", config, "--axes", "dt,bogus", "--out", out], capture_output=True, text=True)
 assert r.returncode == 2 and "bogus" in r.stderr, (r.returncode, r.stderr)
 
-# The size preset: N x seeds at one setting, every sample prepared on its own.
+# The size preset: N x seeds at one setting, every sample prepared on its own; the largest N with
+# its first seed only (preset largest_seeds).
 out = os.path.join(work, "study-size")
 shutil.rmtree(out, ignore_errors=True)
 r = subprocess.run([triaxial, "study", config, "--preset", "size-smoke", "--out", out, "--threads", "1"],
@@ -65,24 +66,27 @@ for f in ("study.md", "study.csv", "study.json", "study.png", "study.svg"):
     assert os.path.exists(os.path.join(out, f)), f"size study did not write {f}"
 data = json.load(open(os.path.join(out, "study.json")))
 runs = {m["name"]: m for m in data["runs"]}
-assert set(runs) == {"N120_seed1", "N120_seed2", "N160_seed1", "N160_seed2"}, sorted(runs)
-# Each run is its own sample: the configured count, and four different preparations.
+assert set(runs) == {"N120_seed1", "N120_seed2", "N160_seed1", "N160_seed2", "N200_seed1"}, sorted(runs)
+# Each run is its own sample: the configured count and seed, and five different preparations.
 for m in runs.values():
     cfg = open(os.path.join(out, m["name"], "config.toml")).read()
     assert f"count = {m['N']}" in cfg and f"seed = {m['seed']}" in cfg, m["name"]
-assert len({m["e0"] for m in runs.values()}) == 4, [m["e0"] for m in runs.values()]
+assert len({m["e0"] for m in runs.values()}) == 5, [m["e0"] for m in runs.values()]
 # The per-size rows are the mean and sample standard deviation of their runs (two seeds: the std is
-# |a - b| / sqrt(2)); the size error is measured from the largest N, whose own error is 0. Exact up
-# to the round-off of a two-term mean (1e-12 relative).
+# |a - b| / sqrt(2); one seed: the value, std NaN); the size error is measured from the largest N,
+# whose own error is 0. Exact up to the round-off of a two-term mean (1e-12 relative).
 groups = {g["N"]: g for g in data["by_size"]}
-for n, g in groups.items():
-    a, b = runs[f"N{n}_seed1"], runs[f"N{n}_seed2"]
-    for key in ("peak_eta", "res_eta", "res_e", "max_dilation", "e0"):
+keys = ("peak_eta", "res_eta", "res_e", "max_dilation", "e0")
+for n in (120, 160):
+    g, a, b = groups[n], runs[f"N{n}_seed1"], runs[f"N{n}_seed2"]
+    for key in keys:
         assert abs(g[key] - (a[key] + b[key]) / 2) <= 1e-12 * abs(g[key]), (n, key)
         assert abs(g["std_" + key] - abs(a[key] - b[key]) / 2 ** 0.5) <= 1e-12 * max(abs(a[key]), 1.0), (n, key)
-        assert abs(g["err_" + key] - abs(g[key] - groups[160][key])) <= 1e-12 * max(abs(g[key]), 1.0), (n, key)
+        assert abs(g["err_" + key] - abs(g[key] - runs["N200_seed1"][key])) <= 1e-12 * max(abs(g[key]), 1.0), (n, key)
     assert g["prep_wall"] > 0 and g["wall"] > 0, g
-assert all(groups[160]["err_" + k] == 0.0 for k in ("peak_eta", "res_eta", "res_e", "max_dilation"))
+for key in keys:
+    assert groups[200][key] == runs["N200_seed1"][key] and groups[200]["err_" + key] == 0.0, key
+    assert groups[200]["std_" + key] != groups[200]["std_" + key], key  # NaN: one sample has no scatter
 md = open(os.path.join(out, "study.md")).read()
-assert "| 120 |" in md and "| 160 |" in md and "error / scatter" in md
+assert "| 120 |" in md and "| 200 |" in md and "error / scatter" in md
 print("study checks passed")
