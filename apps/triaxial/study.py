@@ -248,6 +248,16 @@ def pareto(points):
     return front
 
 
+def save_figure(fig, title, out):
+    """Titles and writes study.png and study.svg into `out`; reports the outputs. Returns 0 (done)."""
+    fig.suptitle(title, fontsize=10)
+    fig.tight_layout()
+    for ext in ("png", "svg"):
+        fig.savefig(os.path.join(out, f"study.{ext}"), dpi=110)
+    print(f"{PROG}: wrote {os.path.join(out, 'study.md')} (+ csv, json, png, svg)")
+    return 0
+
+
 def mean_std(vals):
     """Mean and sample standard deviation (NaN for a single value) of the finite values."""
     vals = [v for v in vals if math.isfinite(v)]
@@ -366,12 +376,7 @@ def size_study(args, preset, base):
         ax.set_xlabel("N (spheres)")
         ax.grid(True, which="both", alpha=0.3)
     axs.flat[0].legend(fontsize=7)
-    fig.suptitle(f"sandcell sample size ({cmd})", fontsize=10)
-    fig.tight_layout()
-    for ext in ("png", "svg"):
-        fig.savefig(os.path.join(args.out, f"study.{ext}"), dpi=110)
-    print(f"{PROG}: wrote {os.path.join(args.out, 'study.md')} (+ csv, json, png, svg)")
-    return 0
+    return save_figure(fig, f"sandcell sample size ({cmd})", args.out)
 
 
 def main():
@@ -553,12 +558,7 @@ def main():
         ax.grid(True, which="both", alpha=0.3)
     handles = [plt.Line2D([], [], marker="o", ls="", color=c, label=a) for a, c in colors.items()]
     axs.flat[0].legend(handles=handles + axs.flat[0].get_legend_handles_labels()[0], fontsize=7)
-    fig.suptitle(f"sandcell speed vs accuracy ({cmd})", fontsize=10)
-    fig.tight_layout()
-    for ext in ("png", "svg"):
-        fig.savefig(os.path.join(args.out, f"study.{ext}"), dpi=110)
-    print(f"{PROG}: wrote {os.path.join(args.out, 'study.md')} (+ csv, json, png, svg)")
-    return 0
+    return save_figure(fig, f"sandcell speed vs accuracy ({cmd})", args.out)
 
 
 if __name__ == "__main__":

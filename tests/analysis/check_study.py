@@ -11,14 +11,22 @@ import subprocess
 import sys
 
 triaxial, config, work = sys.argv[1:4]
-out = os.path.join(work, "study")
-shutil.rmtree(out, ignore_errors=True)
-r = subprocess.run([triaxial, "study", config, "--preset", "smoke", "--out", out, "--threads", "1"],
-                   capture_output=True, text=True)
-assert r.returncode == 0, f"triaxial study exited {r.returncode}:\n{r.stdout}\n{r.stderr}"
-for f in ("study.md", "study.csv", "study.json", "study.png", "study.svg"):
-    assert os.path.exists(os.path.join(out, f)), f"study did not write {f}"
-data = json.load(open(os.path.join(out, "study.json")))
+
+
+def run_study(preset, folder):
+    """Runs the preset into work/folder from scratch; checks it wrote every output; returns the folder
+    and study.json."""
+    out = os.path.join(work, folder)
+    shutil.rmtree(out, ignore_errors=True)
+    r = subprocess.run([triaxial, "study", config, "--preset", preset, "--out", out, "--threads", "1"],
+                       capture_output=True, text=True)
+    assert r.returncode == 0, f"triaxial study --preset {preset} exited {r.returncode}:\n{r.stdout}\n{r.stderr}"
+    for f in ("study.md", "study.csv", "study.json", "study.png", "study.svg"):
+        assert os.path.exists(os.path.join(out, f)), f"study --preset {preset} did not write {f}"
+    return out, json.load(open(os.path.join(out, "study.json")))
+
+
+out, data = run_study("smoke", "study")
 runs = {m["name"]: m for m in data["runs"]}
 ref = runs["ref"]
 assert set(runs) == {"ref", "dt_0.4", "I_0.03", "E_x0.3", "e_0.9", "N_160", "seed_2"}, sorted(runs)
@@ -57,14 +65,7 @@ assert r.returncode == 2 and "bogus" in r.stderr, (r.returncode, r.stderr)
 
 # The size preset: N x seeds at one setting, every sample prepared on its own; the largest N with
 # its first seed only (preset largest_seeds).
-out = os.path.join(work, "study-size")
-shutil.rmtree(out, ignore_errors=True)
-r = subprocess.run([triaxial, "study", config, "--preset", "size-smoke", "--out", out, "--threads", "1"],
-                   capture_output=True, text=True)
-assert r.returncode == 0, f"triaxial study --preset size-smoke exited {r.returncode}:\n{r.stdout}\n{r.stderr}"
-for f in ("study.md", "study.csv", "study.json", "study.png", "study.svg"):
-    assert os.path.exists(os.path.join(out, f)), f"size study did not write {f}"
-data = json.load(open(os.path.join(out, "study.json")))
+out, data = run_study("size-smoke", "study-size")
 runs = {m["name"]: m for m in data["runs"]}
 assert set(runs) == {"N120_seed1", "N120_seed2", "N160_seed1", "N160_seed2", "N200_seed1"}, sorted(runs)
 # Each run is its own sample: the configured count and seed, and five different preparations.
