@@ -14,6 +14,7 @@ steps=${1:-20000}
 cores=${2:-2}
 erate=${3:-0}
 rounds=${4:-1}
+[[ "$rounds" =~ ^[1-9][0-9]*$ ]] || { echo "ROUNDS = $rounds: must be an integer >= 1" >&2; exit 2; }
 bench="$root/build/release/apps/dem-bench/dem-bench"
 scene="$root/apps/dem-bench/scenes/dense-20k.txt"
 command -v liggghts >/dev/null || { echo "liggghts not installed: apt-get install liggghts" >&2; exit 2; }

@@ -37,7 +37,7 @@ Presets (reference first):
   size    the sample size on its own: N 500, 1000, 2000, 5000 x seeds 1, 2, 3 and N 20000 x seed 1,
           at dt 0.2 dt_R and I 1e-3, to 20 %; every run prepares its own sample. Per N: mean and
           standard deviation over the seeds of every measure, and the size error |mean(N) - mean(20000)|.
-          ~1.5 h on 2 cores (the 20,000-sphere run ~half of it).
+          ~1 h on 2 cores (the 20,000-sphere run 23 min of it, 15 of them its preparation).
 Exit status: 0 done; 2 bad input; 1 a run failed (its log is in <out>/<run>/log.txt).
 """
 import argparse
@@ -60,10 +60,10 @@ PRESETS = {
                   seeds=[2]),
     # Sample size and seed scatter at one practical setting (size_study): N x seeds.
     # The largest N is run for the first `largest_seeds` seeds only: its preparation alone takes
-    # ~20 min on 2 cores (it needs more steps to settle than a small sample).
-    "size": dict(kind="size", count=2000, strain=0.2, dt=[0.2], I=[1e-3], E=[1.0], e=[0.5],
+    # ~15 min on 2 cores (a larger sample needs more steps to settle).
+    "size": dict(kind="size", strain=0.2, dt=[0.2], I=[1e-3], E=[1.0], e=[0.5],
                  N=[500, 1000, 2000, 5000, 20000], seeds=[1, 2, 3], largest_seeds=1),
-    "size-smoke": dict(kind="size", count=120, strain=0.03, dt=[0.2], I=[1e-2], E=[1.0], e=[0.5], N=[120, 160, 200],
+    "size-smoke": dict(kind="size", strain=0.03, dt=[0.2], I=[1e-2], E=[1.0], e=[0.5], N=[120, 160, 200],
                        seeds=[1, 2], largest_seeds=1),
     "full": dict(count=2000, strain=0.3, dt=[0.05, 0.1, 0.2, 0.35, 0.5], I=[1e-5, 1e-4, 1e-3, 3e-3, 1e-2],
                  E=[1.0, 0.1, 0.01], e=[0.5, 0.1, 0.9], N=[2000, 500, 1000, 5000, 20000], seeds=[2, 3, 4]),
@@ -269,11 +269,11 @@ def mean_std(vals):
     return mean, math.sqrt(sum((v - mean) ** 2 for v in vals) / (len(vals) - 1))
 
 
-def prep_wall(out):
-    """Wall seconds of the run's sample preparation (samples.csv; NaN when the run found it prepared)."""
+def preparation(out):
+    """Steps and wall seconds of the run's sample preparation (samples.csv; NaN without one)."""
     path = os.path.join(out, "samples.csv")
     rows = list(csv.DictReader(open(path))) if os.path.exists(path) else []
-    return float(rows[0]["wall_s"]) if rows else float("nan")
+    return (float(rows[0]["steps"]), float(rows[0]["wall_s"])) if rows else (float("nan"), float("nan"))
 
 
 def size_study(args, preset, base):
@@ -285,17 +285,20 @@ def size_study(args, preset, base):
     at the largest N (preset largest_seeds), its own scatter is part of every size error.
     """
     seeds = preset["seeds"]
-    ref = dict(dt=preset["dt"][0], I=preset["I"][0], E=preset["E"][0], e=preset["e"][0], N=preset["count"],
-               seed=seeds[0])
+    n_max = max(preset["N"])
+    seeds_max = seeds[:preset.get("largest_seeds", len(seeds))]
+    ref = dict(dt=preset["dt"][0], I=preset["I"][0], E=preset["E"][0], e=preset["e"][0])
     os.makedirs(args.out, exist_ok=True)
     runs = []
     for n in preset["N"]:
-        for seed in seeds[:preset.get("largest_seeds", len(seeds))] if n == max(preset["N"]) else seeds:
+        for seed in seeds_max if n == n_max else seeds:
             name = f"N{n}_seed{seed}"
             cfg, rate = variant_config(base, preset, ref, N=n, seed=seed)
             row, out = run_variant(name, cfg, args)
             m = metrics(row, out, args.window)
-            m.update(name=name, N=n, seed=seed, rate=rate, prep_wall=prep_wall(out), Z0=float(row["Z0"]))
+            prep_steps, prep_wall = preparation(out)
+            m.update(name=name, N=n, seed=seed, rate=rate, prep_steps=prep_steps, prep_wall=prep_wall,
+                     Z0=float(row["Z0"]))
             m["psteps_per_s"] = n * m["steps"] / m["wall"] if m["wall"] > 0 else float("nan")
             m["cost"] = n * m["steps"] / max(m["strain"], 1e-12)
             runs.append(m)
@@ -308,6 +311,7 @@ def size_study(args, preset, base):
         sel = [m for m in runs if m["N"] == n]
         g = dict(N=n, seeds=len(sel), wall=sum(m["wall"] for m in sel) / len(sel),
                  prep_wall=sum(m["prep_wall"] for m in sel) / len(sel),
+                 prep_steps=sum(m["prep_steps"] for m in sel) / len(sel),
                  cost=sum(m["cost"] for m in sel) / len(sel),
                  psteps_per_s=sum(m["psteps_per_s"] for m in sel) / len(sel))
         for k in keys:
@@ -318,7 +322,7 @@ def size_study(args, preset, base):
         for k in keys:
             g[f"err_{k}"] = abs(g[k] - top[k])
 
-    fields = ["name", "N", "seed", "rate", "e0", "Z0", "prep_wall", "peak_eta", "peak_strain", "res_eta", "res_e", "max_dilation", "I",
+    fields = ["name", "N", "seed", "rate", "e0", "Z0", "prep_steps", "prep_wall", "peak_eta", "peak_strain", "res_eta", "res_e", "max_dilation", "I",
               "max_overlap", "steps", "wall", "psteps_per_s", "cost"]
     with open(os.path.join(args.out, "study.csv"), "w", newline="") as f:
         w = csv.DictWriter(f, fieldnames=fields, extrasaction="ignore")
@@ -331,17 +335,18 @@ def size_study(args, preset, base):
     labels = dict(METRICS, e0="e0", Z0="Z0", peak_strain="eps1 at peak")
     lines = [f"# Sample size: `{cmd}`", "",
              f"Setting: dt = {ref['dt']} dt_R, I = {ref['I']:g} (axial rate {runs[0]['rate']:.3g} /s), E x {ref['E']:g}, "
-             f"e = {ref['e']}; {len(seeds)} samples (seeds {', '.join(map(str, seeds))}) per N, each prepared on its own "
+             f"e = {ref['e']}; seeds {', '.join(map(str, seeds))} per N ({', '.join(map(str, seeds_max))} at N = {n_max}), "
+             "each sample prepared on its own "
              f"and sheared to {preset['strain']} axial strain. Residual values: means over the last {args.window} of "
              "axial strain. Per N: mean +- standard deviation over the seeds; size error: |mean - mean at the "
              f"largest N ({top['N']})|.", "",
-             "| N | " + " | ".join(labels[k] for k in keys) + " | wall s, preparation + shearing | shearing M p-steps/s | "
+             "| N | " + " | ".join(labels[k] for k in keys) + " | preparation steps | wall s, preparation + shearing | shearing M p-steps/s | "
              "cost (p-steps per unit strain) |",
-             "|---" * (len(keys) + 4) + "|"]
+             "|---" * (len(keys) + 5) + "|"]
     for g in groups:
         cells = [f"{g[k]:.4f} +- {g['std_' + k]:.4f}" if math.isfinite(g["std_" + k]) else
                  f"{g[k]:.4f} ({g['seeds']} seed)" for k in keys]
-        lines.append(f"| {g['N']} | " + " | ".join(cells) + f" | {g['prep_wall']:.0f} + {g['wall']:.0f} | {g['psteps_per_s'] / 1e6:.2f} | "
+        lines.append(f"| {g['N']} | " + " | ".join(cells) + f" | {g['prep_steps']:.0f} | {g['prep_wall']:.0f} + {g['wall']:.0f} | {g['psteps_per_s'] / 1e6:.2f} | "
                      f"{g['cost']:.3g} |")
     lines += ["", "Size error |mean(N) - mean(N_max)| against the scatter of one test (standard deviation over the "
               "seeds at N):", "",

@@ -84,7 +84,7 @@ for n in (120, 160):
         assert abs(g[key] - (a[key] + b[key]) / 2) <= 1e-12 * abs(g[key]), (n, key)
         assert abs(g["std_" + key] - abs(a[key] - b[key]) / 2 ** 0.5) <= 1e-12 * max(abs(a[key]), 1.0), (n, key)
         assert abs(g["err_" + key] - abs(g[key] - runs["N200_seed1"][key])) <= 1e-12 * max(abs(g[key]), 1.0), (n, key)
-    assert g["prep_wall"] > 0 and g["wall"] > 0, g
+    assert g["prep_wall"] > 0 and g["wall"] > 0 and g["prep_steps"] > 0, g
 for key in keys:
     assert groups[200][key] == runs["N200_seed1"][key] and groups[200]["err_" + key] == 0.0, key
     assert groups[200]["std_" + key] != groups[200]["std_" + key], key  # NaN: one sample has no scatter
