@@ -45,6 +45,7 @@ struct PairConstants {
   std::vector<double> r_star;    // (m) m, R* = R_i R_j / (R_i + R_j); broadphase
   std::vector<double> m_star;    // (m) kg, m* = m_i m_j / (m_i + m_j); broadphase
   std::vector<std::uint8_t> image_code;  // (m) -, the image (each of -1, 0, 1) as 9 (I_z+1) + 3 (I_y+1) + I_x+1
+  std::uint64_t generation = 0;          // -, counts rebuilds: per-pair hints kept elsewhere know the list changed
 };
 
 /// Broadphase private buffers and statistics.
@@ -66,15 +67,19 @@ struct BroadphaseScratch {
   std::string error;                        // set when the scene cannot be continued; checked by World
 };
 
-/// Contact pass private buffers: the order in which it visits the pairs of each block of 64
-/// (hertz_mindlin.cpp says why). Hints only: every pair is visited once whatever the order and
-/// writes only its own slots, so no result depends on them, and they are neither remapped at
-/// rebuilds (a stale hint costs mispredicted branches, nothing else) nor checkpointed.
+/// Contact pass private buffers: last step's regime of each pair and the order in which the pass
+/// visits the pairs of each block of 64 (hertz_mindlin.cpp says why). Every pair is visited once
+/// whatever the order and writes only its own slots. One regime is more than a hint: an open pair
+/// marked apart is not written again, its outputs being zero since it opened; so the regimes hold
+/// for one list only (a new list, PairConstants::generation, starts them again) and a World made
+/// from a state starts without them. Not checkpointed.
 struct ContactScratch {
-  std::vector<std::uint8_t> regime;  // (m) -, caps pair k was at in the last step: bit 0 Coulomb, bit 1 rolling
+  std::vector<std::uint8_t> regime;  // (m) -, pair k in the last step: bit 0 Coulomb cap, bit 1 rolling cap;
+                                     //   k_apart (4): open, its force, torques and histories zero
   std::vector<std::uint8_t> order;   // (m) -, per block, a permutation of its pair offsets 0..63
   std::vector<std::uint8_t> stale;   // (blocks) -, 1: a regime in the block changed, sort it again
-  std::vector<std::uint8_t> sorted;  // (blocks) -, 1: visit in `order`; 0: no pair at a cap, array order
+  std::vector<std::uint8_t> sorted;  // (blocks) -, 1: visit in `order`; 0: all touching, none capped: array order
+  std::uint64_t generation = ~std::uint64_t{0};  // -, PairConstants::generation the regimes describe
 };
 
 template <Component C>

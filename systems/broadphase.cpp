@@ -282,6 +282,7 @@ void rebuild_gather_index(const ContactPairs& pairs, std::size_t n, GatherIndex&
 void rebuild_pair_constants(const ContactPairs& pairs, const std::vector<double>& radius,
                             const std::vector<double>& mass, PairConstants& out) {
   const std::size_t m = pairs.size();
+  ++out.generation;
   out.r_star.resize(m);
   out.m_star.resize(m);
   out.image_code.resize(m);

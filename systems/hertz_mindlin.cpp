@@ -100,6 +100,8 @@ struct HertzMindlinEvaluator {
 // the loads of both spheres' radii and masses taken out of every step (hertz_mindlin 2.19 ->
 // 1.96 s per 1000 steps on dense-20k, 1 thread).
 constexpr std::size_t k_block = 64;
+// ContactScratch::regime of an open pair: its outputs and histories are zero since the step it opened.
+constexpr std::uint8_t k_apart = 4;
 static_assert(k_contact_grain % k_block == 0, "blocks must not straddle parallel chunks");
 static_assert(k_block < 256, "phase 3 keeps the visiting order as byte offsets");
 
@@ -140,15 +142,17 @@ void contact_loop(const Model& model, State& state, Scratch& scratch, Executor& 
   // cdt has no history: like none, it allocates none.
   constexpr bool rolling_history = Roll == RollingModel::epsd2 || Roll == RollingModel::epsd;
   if constexpr (rolling_history) rolling.resize(m);
-  // Visiting order of phase 3 (hints, ContactScratch). A new list of the same length keeps them:
-  // its blocks have the same lengths, so every order is still a permutation of its block.
+  // Last step's regimes (ContactScratch) describe the slots of the list they were made for: a new
+  // list starts from none (its slots hold other pairs, and no slot's outputs are known to be zero).
   ContactScratch& hint = scratch.contact;
-  if (hint.order.size() != m) {
+  if (hint.generation != constants.generation) {
     hint.regime.assign(m, 0);
     hint.order.assign(m, 0);
     hint.stale.assign((m + k_block - 1) / k_block, 1);
     hint.sorted.assign((m + k_block - 1) / k_block, 0);
+    hint.generation = constants.generation;
   }
+  SANDCELL_ASSERT(hint.regime.size() == m, "contact regimes of another pair list");
 
   const Vec3 rate = cell.rate;
   const std::size_t n_mat = model.materials.size();
@@ -241,24 +245,26 @@ void contact_loop(const Model& model, State& state, Scratch& scratch, Executor& 
         gather(std::false_type{});
         stiffness(std::false_type{});
       }
-      // Phase 3 visits the block's touching pairs grouped by the caps they were at in the last
-      // step (regime): the cap tests then run in stretches of the same outcome, which the branch
-      // predictor follows. In array order they come at random, and each miss costs ~50 cycles:
-      // on dense-20k shortened by 1 % (scene B), a quarter of the touching pairs slide and 59 %
-      // are at the rolling cap (means over its 20,000 steps), and a pair changes regime about 5
-      // times in 10,000 steps. The order is a stable counting sort of the block by regime, made
-      // again only when a regime in the block changed in the last step; a block with no pair at a
-      // cap keeps array order. Scene B over 20,000 steps: hertz_mindlin 29.5-31.7 -> 23.6-24.1 s
-      // on 2 threads; scene A, which has almost no caps, pays 2 % for keeping the regimes.
+      // Phase 3 visits the block's pairs grouped by their regime in the last step: touching below
+      // the caps, at the Coulomb cap, at the rolling cap, at both, open. The overlap and cap tests
+      // then run in stretches of the same outcome, which the branch predictor follows. In array
+      // order they come at random, and each miss costs ~50 cycles: on dense-20k shortened by 1 %
+      // (scene B), a quarter of the touching pairs slide and 59 % are at the rolling cap (means
+      // over its 20,000 steps), and a pair changes regime about 5 times in 10,000 steps; on
+      // dense-20k a quarter of the candidate pairs are open. The order is a stable counting sort of
+      // the block by regime, made again only when a regime in the block changed in the last step;
+      // a block of pairs all touching below the caps keeps array order. Scene B over 20,000 steps:
+      // grouping by the caps took hertz_mindlin from 29.5-31.7 to 23.6-24.1 s on 2 threads.
+      // An open pair already marked open is not written: its outputs are zero since it opened.
       const std::size_t block = k0 / k_block;
       std::uint8_t* __restrict order = order_all + k0;
       if (stale[block]) {
-        unsigned start[5] = {0, 0, 0, 0, 0};
-        for (std::size_t t = 0; t < nb; ++t) ++start[(regime[k0 + t] & 3u) + 1];
+        unsigned start[6] = {0, 0, 0, 0, 0, 0};
+        for (std::size_t t = 0; t < nb; ++t) ++start[regime[k0 + t] + 1];
         sorted[block] = start[1] != nb;
         if (sorted[block]) {
-          for (unsigned g = 1; g < 4; ++g) start[g] += start[g - 1];
-          for (std::size_t t = 0; t < nb; ++t) order[start[regime[k0 + t] & 3u]++] = static_cast<std::uint8_t>(t);
+          for (unsigned g = 1; g < 5; ++g) start[g] += start[g - 1];
+          for (std::size_t t = 0; t < nb; ++t) order[start[regime[k0 + t]]++] = static_cast<std::uint8_t>(t);
         }
         stale[block] = 0;
       }
@@ -267,13 +273,13 @@ void contact_loop(const Model& model, State& state, Scratch& scratch, Executor& 
       auto visit = [&](std::size_t t) __attribute__((always_inline)) {
         const std::size_t k = k0 + t;
         if (!(blk.overlap[t] > 0.0)) {
-          force[k].setZero();
-          torque_i[k].setZero();
-          torque_j[k].setZero();
-          hist_t[k].setZero();  // history resets when the contact opens
-          if constexpr (rolling_history) hist_r[k].setZero();
-          if (regime[k] != 0) [[unlikely]] {
-            regime[k] = 0;
+          if (regime[k] != k_apart) [[unlikely]] {  // else all zero since the step it opened
+            force[k].setZero();
+            torque_i[k].setZero();
+            torque_j[k].setZero();
+            hist_t[k].setZero();  // history resets when the contact opens
+            if constexpr (rolling_history) hist_r[k].setZero();
+            regime[k] = k_apart;
             changed = 1;
           }
           return;
