@@ -784,7 +784,7 @@ void run_parallel(std::size_t n, int workers, Fn&& fn) {
 
 }  // namespace
 
-// `triaxial analyze|study ...`: runs the Python script <command>.py with the remaining arguments;
+// `triaxial analyze|study|localization ...`: runs the Python script <command>.py with the remaining arguments;
 // the script's usage lines name "triaxial <command>", and the study finds this binary through
 // SANDCELL_TRIAXIAL.
 static int script_main(const std::string& command, int argc, const char* const* argv, std::ostream& err) {
@@ -827,13 +827,17 @@ int triaxial_main(int argc, const char* const* argv, std::ostream& out, std::ost
   if (argc >= 2 && std::string(argv[1]) == "analyze") return script_main("analyze", argc - 1, argv + 1, err);
   // `triaxial study CONFIG [--preset quick|full|size]`: the speed-accuracy study (study.py).
   if (argc >= 2 && std::string(argv[1]) == "study") return script_main("study", argc - 1, argv + 1, err);
+  // `triaxial localization RESULTS.h5... [--out DIR] [--grid G]`: strain fields between snapshots (localization.py).
+  if (argc >= 2 && std::string(argv[1]) == "localization") return script_main("localization", argc - 1, argv + 1, err);
   Options options;
   bool print_default = false;
   CLI::App app{"sandcell triaxial: true triaxial DEM tests in a stress-controlled periodic cell"};
   app.footer("Analysis of results (critical state line, M(theta), dilatancy; report and figures):\n"
              "  triaxial analyze RESULTS.h5|DIR... [--out DIR]   (triaxial analyze --help for its options)\n"
              "Speed versus accuracy (timestep, inertial number, stiffness, restitution, N; table and Pareto figure):\n"
-             "  triaxial study [CONFIG] [--preset quick|full|size] [--out DIR]   (triaxial study --help)");
+             "  triaxial study [CONFIG] [--preset quick|full|size] [--out DIR]   (triaxial study --help)\n"
+             "Strain localization (shear bands) from the particle snapshots of results files:\n"
+             "  triaxial localization RESULTS.h5... [--out DIR] [--grid G]   (triaxial localization --help)");
   app.add_option("config", options.config_path, "TOML configuration (none: the embedded default)");
   app.add_option("--threads", options.threads, "worker threads in all (default: all cores)")->check(CLI::Range(1, 1024));
   app.add_option("--out", options.out, "output directory (default: results/<config name>)");
