@@ -198,6 +198,16 @@ def main():
         assert run(path, "--out", out).returncode == 0, "rerun failed"
         assert open(other).read() == "mine", "an unrelated file in --out was changed"
 
+        # -- the stage's end, written a few steps after the last interval snapshot, replaces that one: the
+        #    last increment then spans both (1000 -> 2003) instead of being 3 steps of noise
+        end = os.path.join(tmp, "end.h5")
+        s_end = (s2 + 1e-7) % 1.0
+        write_results(end, [(0, ids0, s0, L0), (1000, ids0, s0, L1), (2000, ids0, s2, L2), (2003, ids0, s_end, L2)], rng)
+        r = run(end, "--out", out)
+        assert r.returncode == 0, f"stage end: exit {r.returncode}, {r.stderr}"
+        rows = list(csv.DictReader(open(os.path.join(out, "end-localization.csv"))))
+        assert [(int(r["step_a"]), int(r["step_b"])) for r in rows] == [(0, 1000), (1000, 2003)], rows
+
         # -- bad input: exit 2 with a message naming what is wrong
         r = run(path, "--grid", "2")
         assert r.returncode == 2 and "--grid" in r.stderr, f"--grid 2: exit {r.returncode}, {r.stderr!r}"
