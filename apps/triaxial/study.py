@@ -34,10 +34,11 @@ Presets (reference first):
   full    2000 spheres to 30 %; dt 0.05 | 0.1 0.2 0.35 0.5; I 1e-5 | 1e-4 1e-3 3e-3 1e-2;
           E x 1 | 1/10 1/100; e 0.5 | 0.1 0.9; N 2000 | 500 1000 5000 20000; seeds 2, 3, 4.
           The I = 1e-5 reference alone is ~2e8 steps: days on 16 cores. Axes can be narrowed.
-  size    the sample size on its own: N 500, 1000, 2000, 5000 x seeds 1, 2, 3 and N 20000 x seed 1,
-          at dt 0.2 dt_R and I 1e-3, to 20 %; every run prepares its own sample. Per N: mean and
-          standard deviation over the seeds of every measure, and the size error |mean(N) - mean(20000)|.
-          ~1 h on 2 cores (the 20,000-sphere run 23 min of it, 15 of them its preparation).
+  size    the sample size on its own: N 500, 1000, 2000, 5000, 20000 x seeds 1, 2, 3, at dt 0.2 dt_R
+          and I 1e-3, to 20 %; every run prepares its own sample and writes 20 particle snapshots
+          (for `triaxial localization`). Per N: mean and standard deviation over the seeds of every
+          measure, and the size error |mean(N) - mean(20000)|. ~1.7 h on 2 cores (each 20,000-sphere
+          run ~22 min, 15 of them its preparation).
 Exit status: 0 done; 2 bad input; 1 a run failed (its log is in <out>/<run>/log.txt).
 """
 import argparse
@@ -59,10 +60,11 @@ PRESETS = {
     "smoke": dict(count=120, strain=0.03, dt=[0.2, 0.4], I=[1e-2, 3e-2], E=[1.0, 0.3], e=[0.5, 0.9], N=[120, 160],
                   seeds=[2]),
     # Sample size and seed scatter at one practical setting (size_study): N x seeds.
-    # The largest N is run for the first `largest_seeds` seeds only: its preparation alone takes
-    # ~15 min on 2 cores (a larger sample needs more steps to settle).
+    # `largest_seeds` (default: all) runs the largest N for the first seeds only; each 20,000-sphere
+    # run takes ~23 min on 2 cores, 15 of them its preparation. `snapshots`: particle snapshots per
+    # test, evenly spaced in strain (the strain fields of `triaxial localization`).
     "size": dict(kind="size", strain=0.2, dt=[0.2], I=[1e-3], E=[1.0], e=[0.5],
-                 N=[500, 1000, 2000, 5000, 20000], seeds=[1, 2, 3], largest_seeds=1),
+                 N=[500, 1000, 2000, 5000, 20000], seeds=[1, 2, 3], snapshots=20),
     "size-smoke": dict(kind="size", strain=0.03, dt=[0.2], I=[1e-2], E=[1.0], e=[0.5], N=[120, 160, 200],
                        seeds=[1, 2], largest_seeds=1),
     "full": dict(count=2000, strain=0.3, dt=[0.05, 0.1, 0.2, 0.35, 0.5], I=[1e-5, 1e-4, 1e-3, 3e-3, 1e-2],
@@ -153,7 +155,10 @@ def variant_config(base, preset, ref, **over):
     rate = float(s["I"]) / (d50_of(cfg["sample"]) * math.sqrt(rho / p0))
     cfg["shear"].update(strain_rate=rate, max_axial_strain=preset["strain"], stop_at_critical=False)
     # About 400 rows per test whatever the step count: the metrics need the curves resolved.
-    cfg["output"].update(plot=False, series_interval=max(1, int(preset["strain"] / (rate * time_step(cfg)) / 400)))
+    steps = preset["strain"] / (rate * time_step(cfg))
+    cfg["output"].update(plot=False, series_interval=max(1, int(steps / 400)))
+    if preset.get("snapshots"):
+        cfg["output"]["snapshot_interval"] = max(1, int(steps / preset["snapshots"]))
     return cfg, rate
 
 
