@@ -74,8 +74,9 @@ struct BroadphaseScratch {
 /// for one list only (a new list, PairConstants::generation, starts them again) and a World made
 /// from a state starts without them. Not checkpointed.
 struct ContactScratch {
+  static constexpr std::uint8_t k_apart = 4;  // regime of an open pair: its outputs and histories zero since it opened
   std::vector<std::uint8_t> regime;  // (m) -, pair k in the last step: bit 0 Coulomb cap, bit 1 rolling cap;
-                                     //   k_apart (4): open, its force, torques and histories zero
+                                     //   or k_apart
   std::vector<std::uint8_t> order;   // (m) -, per block, a permutation of its pair offsets 0..63
   std::vector<std::uint8_t> stale;   // (blocks) -, 1: a regime in the block changed, sort it again
   std::vector<std::uint8_t> sorted;  // (blocks) -, 1: visit in `order`; 0: all touching, none capped: array order

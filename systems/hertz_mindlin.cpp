@@ -100,8 +100,6 @@ struct HertzMindlinEvaluator {
 // the loads of both spheres' radii and masses taken out of every step (hertz_mindlin 2.19 ->
 // 1.96 s per 1000 steps on dense-20k, 1 thread).
 constexpr std::size_t k_block = 64;
-// ContactScratch::regime of an open pair: its outputs and histories are zero since the step it opened.
-constexpr std::uint8_t k_apart = 4;
 static_assert(k_contact_grain % k_block == 0, "blocks must not straddle parallel chunks");
 static_assert(k_block < 256, "phase 3 keeps the visiting order as byte offsets");
 
@@ -273,13 +271,13 @@ void contact_loop(const Model& model, State& state, Scratch& scratch, Executor& 
       auto visit = [&](std::size_t t) __attribute__((always_inline)) {
         const std::size_t k = k0 + t;
         if (!(blk.overlap[t] > 0.0)) {
-          if (regime[k] != k_apart) [[unlikely]] {  // else all zero since the step it opened
+          if (regime[k] != ContactScratch::k_apart) [[unlikely]] {  // else all zero since the step it opened
             force[k].setZero();
             torque_i[k].setZero();
             torque_j[k].setZero();
             hist_t[k].setZero();  // history resets when the contact opens
             if constexpr (rolling_history) hist_r[k].setZero();
-            regime[k] = k_apart;
+            regime[k] = ContactScratch::k_apart;
             changed = 1;
           }
           return;

@@ -9,9 +9,10 @@
 // per pair slot, the force on i and the torques on i and j (contact_forces), the tangential history
 // (contact_tangential) and the rolling history (contact_rolling). One parallel_for over pairs; each
 // pair writes only its own slots, so no atomics are needed and the per-particle sums are left to
-// force_gather in a fixed order. Keeps, as its own scratch (Scratch::contact), each pair's cap
-// regime of the last step and the order in which it visits the pairs of a block: a branch hint
-// that changes no result (hertz_mindlin.cpp).
+// force_gather in a fixed order. Keeps, as its own scratch (Scratch::contact), each pair's regime
+// of the last step (caps, or open) and the order in which it visits the pairs of a block: the
+// order is a branch hint that changes no result; an open pair marked open is not written again,
+// so the regimes are started again with every new pair list (hertz_mindlin.cpp).
 // The relative velocity at the contact includes the affine part D r unless liggghts_compat.
 // Pairs in the list that do not touch get zero force and zero history (history resets when a
 // contact opens). The law is instantiated per (tangential model, rolling model, affine term), so
