@@ -1,10 +1,11 @@
 #!/usr/bin/env python3
 """Strain localization in a sandcell triaxial test: is the incremental strain field homogeneous or banded?
 
-    triaxial localization RESULTS.h5... [--out DIR] [--grid G]
+    triaxial localization RESULTS.h5... [--out DIR] [--grid G] [--whole]
 
 Reads the particle snapshots of each shearing results file (`output.snapshot_interval` sets how
-many; ~1 % of axial strain apart suits the method) and, for each pair of consecutive snapshots a, b:
+many; ~1 % of axial strain apart suits the method) and, for each pair of consecutive snapshots a, b
+(with --whole: the first and the last only, one increment over the whole test):
   1. matches the particles by id and takes their non-affine displacement: the cell deforms
      affinely, so a particle that follows it keeps its fractional coordinate s = x / L (mod 1), and
      u = wrap(s_b - s_a) L_b, wrap to [-1/2, 1/2) (the increments' non-affine motion is far below
@@ -164,13 +165,15 @@ def read_series(f, path):
     return {k: np.asarray(s[k][:n], float) for k in names}
 
 
-def snapshot_names(f, path):
+def snapshot_names(f, path, whole=False):
     names = sorted(f["snapshots"].keys(), key=int) if "snapshots" in f else []
     if len(names) < 2:
         fail(f"{path}: {len(names)} particle snapshot(s); localization needs at least 2: set "
              "output.snapshot_interval (steps between snapshots, e.g. 1 % of axial strain) and run the test again")
     # The stage's end is written as well as the interval's snapshots: a few steps after the last
     # of them, it would make an increment of noise. It then replaces that last one.
+    if whole:
+        return [names[0], names[-1]]
     if len(names) >= 3:
         gaps = np.diff([int(k) for k in names])
         if gaps[-1] < 0.5 * np.median(gaps[:-1]):
@@ -213,11 +216,11 @@ def open_results(path):
         fail(f"{path}: cannot read ({e})")
 
 
-def analyse(path, G_opt):
+def analyse(path, G_opt, whole):
     """Rows of statistics and the local deps_q fields of every increment of one results file."""
     with open_results(path) as f:
         series = read_series(f, path)
-        names = snapshot_names(f, path)
+        names = snapshot_names(f, path, whole)
         rows, fields = [], []
         step_a, id_a, x_a, L_a = read_snapshot(f, names[0], path)
         G = G_opt or default_grid(len(id_a))
@@ -351,6 +354,8 @@ def main():
     ap.add_argument("--out", default=None, help="output folder (default: next to each input)")
     ap.add_argument("--grid", type=grid_arg, default=None,
                     help="bins along each cell edge, >= 3 (default: ~40 particles a bin)")
+    ap.add_argument("--whole", action="store_true",
+                    help="one increment, from the first snapshot to the last (the whole test)")
     args = ap.parse_args()
     try:
         import h5py  # noqa: F401 (checked here: used where the files are read and drawn)
@@ -376,7 +381,7 @@ def main():
         except OSError as e:
             fail(f"--out {args.out}: cannot create the folder ({e.strerror})")
     for src, prefix in outputs.items():
-        res = analyse(src, args.grid)
+        res = analyse(src, args.grid, args.whole)
         write_csv(prefix + ".csv", res["rows"])
         best = write_summary(prefix + ".md", src, res)
         write_figure(prefix + ".png", src, res, best)

@@ -208,6 +208,12 @@ def main():
         rows = list(csv.DictReader(open(os.path.join(out, "end-localization.csv"))))
         assert [(int(r["step_a"]), int(r["step_b"])) for r in rows] == [(0, 1000), (1000, 2003)], rows
 
+        # -- --whole: one increment from the first snapshot to the last, whatever lies between
+        r = run(end, "--out", out, "--whole")
+        assert r.returncode == 0, f"--whole: exit {r.returncode}, {r.stderr}"
+        rows = list(csv.DictReader(open(os.path.join(out, "end-localization.csv"))))
+        assert [(int(r["step_a"]), int(r["step_b"])) for r in rows] == [(0, 2003)], rows
+
         # -- bad input: exit 2 with a message naming what is wrong
         r = run(path, "--grid", "2")
         assert r.returncode == 2 and "--grid" in r.stderr, f"--grid 2: exit {r.returncode}, {r.stderr!r}"
