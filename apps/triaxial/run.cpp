@@ -825,7 +825,7 @@ static int script_main(const std::string& command, int argc, const char* const* 
 int triaxial_main(int argc, const char* const* argv, std::ostream& out, std::ostream& err) {
   // `triaxial analyze RESULTS... [--out DIR]`: the critical-state and dilatancy analysis (analyze.py).
   if (argc >= 2 && std::string(argv[1]) == "analyze") return script_main("analyze", argc - 1, argv + 1, err);
-  // `triaxial study CONFIG [--preset quick|full|size]`: the speed-accuracy study (study.py).
+  // `triaxial study CONFIG [--preset quick|inertia|full|size]`: the speed-accuracy study (study.py).
   if (argc >= 2 && std::string(argv[1]) == "study") return script_main("study", argc - 1, argv + 1, err);
   // `triaxial localization RESULTS.h5... [--out DIR] [--grid G] [--whole]`: strain fields between snapshots (localization.py).
   if (argc >= 2 && std::string(argv[1]) == "localization") return script_main("localization", argc - 1, argv + 1, err);
@@ -835,7 +835,7 @@ int triaxial_main(int argc, const char* const* argv, std::ostream& out, std::ost
   app.footer("Analysis of results (critical state line, M(theta), dilatancy; report and figures):\n"
              "  triaxial analyze RESULTS.h5|DIR... [--out DIR]   (triaxial analyze --help for its options)\n"
              "Speed versus accuracy (timestep, inertial number, stiffness, restitution, N; table and Pareto figure):\n"
-             "  triaxial study [CONFIG] [--preset quick|full|size] [--out DIR]   (triaxial study --help)\n"
+             "  triaxial study [CONFIG] [--preset quick|inertia|full|size] [--out DIR]   (triaxial study --help)\n"
              "Strain localization (shear bands) from the particle snapshots of results files:\n"
              "  triaxial localization RESULTS.h5... [--out DIR] [--grid G] [--whole]   (triaxial localization --help)");
   app.add_option("config", options.config_path, "TOML configuration (none: the embedded default)");

@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """Speed versus accuracy of a sandcell triaxial test: what each numerical setting costs and buys.
 
-    study.py [CONFIG] [--preset quick|full|size] [--out DIR] [--threads T] [--tolerance peak=X,res=X,e=X,d=X]
+    study.py [CONFIG] [--preset quick|inertia|full|size] [--out DIR] [--threads T] [--tolerance peak=X,res=X,e=X,d=X]
              [--triaxial PATH]
 
 Takes the first test of CONFIG (default: the embedded default of `triaxial`; its p0, path and b,
@@ -34,6 +34,8 @@ Presets (reference first):
   full    2000 spheres to 30 %; dt 0.05 | 0.1 0.2 0.35 0.5; I 1e-5 | 1e-4 1e-3 3e-3 1e-2;
           E x 1 | 1/10 1/100; e 0.5 | 0.1 0.9; N 2000 | 500 1000 5000 20000; seeds 2, 3, 4.
           The I = 1e-5 reference alone is ~2e8 steps: days on 16 cores. Axes can be narrowed.
+  inertia the inertial number alone: 2000 spheres to 10 % at dt 0.2 dt_R; I 1e-5 | 3e-5 1e-4 3e-4
+          1e-3 3e-3 1e-2. ~1 h on 2 cores. No seeds: give --tolerance (e.g. the size study's scatter).
   size    the sample size on its own: N 500, 1000, 2000, 5000, 20000 x seeds 1, 2, 3, at dt 0.2 dt_R
           and I 1e-3, to 20 %; every run prepares its own sample and writes 20 particle snapshots
           (for `triaxial localization`). Per N: mean and standard deviation over the seeds of every
@@ -67,6 +69,11 @@ PRESETS = {
                  N=[500, 1000, 2000, 5000, 20000], seeds=[1, 2, 3], snapshots=20),
     "size-smoke": dict(kind="size", strain=0.03, dt=[0.2], I=[1e-2], E=[1.0], e=[0.5], N=[120, 160, 200],
                        seeds=[1, 2], largest_seeds=1),
+    # The inertial-number axis alone, down to the issue's I = 1e-5, at the default's N and dt (the dt
+    # axis of `quick` moves the peak by 1e-3 at most): ~1 h on 2 cores, 42 min of it the reference.
+    # No seeds (one more I = 1e-5 run each): pass --tolerance from the size study's scatter at N = 2000.
+    "inertia": dict(count=2000, strain=0.1, dt=[0.2], I=[1e-5, 3e-5, 1e-4, 3e-4, 1e-3, 3e-3, 1e-2], E=[1.0],
+                    e=[0.5], N=[2000], seeds=[]),
     "full": dict(count=2000, strain=0.3, dt=[0.05, 0.1, 0.2, 0.35, 0.5], I=[1e-5, 1e-4, 1e-3, 3e-3, 1e-2],
                  E=[1.0, 0.1, 0.01], e=[0.5, 0.1, 0.9], N=[2000, 500, 1000, 5000, 20000], seeds=[2, 3, 4]),
 }
