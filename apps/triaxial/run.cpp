@@ -827,7 +827,7 @@ int triaxial_main(int argc, const char* const* argv, std::ostream& out, std::ost
   if (argc >= 2 && std::string(argv[1]) == "analyze") return script_main("analyze", argc - 1, argv + 1, err);
   // `triaxial study CONFIG [--preset quick|inertia|full|size]`: the speed-accuracy study (study.py).
   if (argc >= 2 && std::string(argv[1]) == "study") return script_main("study", argc - 1, argv + 1, err);
-  // `triaxial localization RESULTS.h5... [--out DIR] [--grid G] [--whole]`: strain fields between snapshots (localization.py).
+  // `triaxial localization RESULTS.h5... [--out DIR] [--grid G] [--whole] [--slabs K]`: strain fields between snapshots (localization.py).
   if (argc >= 2 && std::string(argv[1]) == "localization") return script_main("localization", argc - 1, argv + 1, err);
   Options options;
   bool print_default = false;
@@ -837,7 +837,7 @@ int triaxial_main(int argc, const char* const* argv, std::ostream& out, std::ost
              "Speed versus accuracy (timestep, inertial number, stiffness, restitution, N; table and Pareto figure):\n"
              "  triaxial study [CONFIG] [--preset quick|inertia|full|size] [--out DIR]   (triaxial study --help)\n"
              "Strain localization (shear bands) from the particle snapshots of results files:\n"
-             "  triaxial localization RESULTS.h5... [--out DIR] [--grid G] [--whole]   (triaxial localization --help)");
+             "  triaxial localization RESULTS.h5... [--out DIR] [--grid G] [--whole] [--slabs K]   (triaxial localization --help)");
   app.add_option("config", options.config_path, "TOML configuration (none: the embedded default)");
   app.add_option("--threads", options.threads, "worker threads in all (default: all cores)")->check(CLI::Range(1, 1024));
   app.add_option("--out", options.out, "output directory (default: results/<config name>)");

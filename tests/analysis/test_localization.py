@@ -107,6 +107,212 @@ def expected_band_slope(phi_c, G):
     return np.sum(2 * R ** m * np.cos(2 * np.pi * m * phi_c) * np.sinc(m / G) ** 2 * np.sinc(2 * m / G), axis=0)
 
 
+def on_planes(xi, L, hkl, rng):
+    """Positions x (one per xi) whose mode coordinate frac(s . hkl) is xi, random within the planes: s_1, s_2 random,
+    s_3 solved for (hkl[2] != 0; l s_3 = xi - h s_1 - k s_2 mod 1 has |l| roots in [0, 1): any of them)."""
+    s = rng.random((len(xi), 3))
+    h, k, l = hkl
+    s[:, 2] = ((xi - h * s[:, 0] - k * s[:, 1]) / l + rng.integers(abs(l), size=len(xi)) / abs(l)) % 1.0
+    return s * L
+
+
+def cut_by_integration(xi_c, r, d, K, n=400000):
+    """Solid volume per slab of one sphere (centre at xi_c, radius r), by the midpoint rule on its disc areas
+    pi (r^2 - t^2) across the planes: independent of the cap formula."""
+    t = -r + (np.arange(n) + 0.5) * (2.0 * r / n)
+    xi = (xi_c + t / d) % 1.0
+    return np.bincount(np.floor(xi * K).astype(np.int64) % K, np.pi * (r * r - t * t) * (2.0 * r / n), K)
+
+
+def check_slab_volumes():
+    """Exact solid volume per slab: spheres across the wrap xi = 0/1, larger than a slab, across one slab plane and
+    inside one slab, against an independent integration; the slabs tile the cell."""
+    rng = np.random.default_rng(11)
+    L = np.array([0.10, 0.12, 0.15])
+    K = 10
+    for hkl in ((1, 0, 1), (1, 0, -2)):
+        d, normal = loc.mode_geometry(L, hkl)
+        assert abs(d - 1 / math.sqrt(hkl[0] ** 2 / L[0] ** 2 + hkl[2] ** 2 / L[2] ** 2)) < 1e-15, f"spacing {d}"
+        w = d / K
+        xi_c = np.array([0.004, 0.45, 0.31, 0.75])  # wrap, large, across the plane xi = 0.3, inside slab 7
+        r = np.array([0.6, 1.7, 0.4, 0.2]) * w
+        x = on_planes(xi_c, L, hkl, rng)
+        x[0] -= L * (x[0] < 0.5 * L)  # unwrapped: a coordinate below 0 (same point of the cell)
+        assert np.abs(loc.mode_coordinate(x, L, hkl) - xi_c).max() < 1e-12, "positions not on their planes"
+        got = np.array([loc.slab_solid_volumes(x[i:i + 1], r[i], L, hkl, K) for i in range(4)])
+        full = 4 / 3 * np.pi * r ** 3
+        # the midpoint rule misplaces at most the disc area times one step (2r/n) at each of the <= 5 planes a sphere
+        # crosses: 5 * (3/4) * 2/n = 1.9e-5 of the sphere (3e-6 seen); 1e-4 leaves a margin
+        for i in range(4):
+            ref = cut_by_integration(xi_c[i], r[i], d, K)
+            assert np.abs(got[i] - ref).max() < 1e-4 * full[i], f"{hkl} sphere {i}: {got[i]} vs {ref}"
+        assert got[0][9] > 0.1 * full[0] and got[0][0] > 0.1 * full[0], f"wrap: {got[0]}"
+        assert np.count_nonzero(got[1]) == 5, f"large sphere in slabs {np.flatnonzero(got[1])}, expected 2-6"
+        z = 0.3 * d - xi_c[2] * d  # the plane xi = 0.3 at z from sphere 2's centre: the cap below goes to slab 2
+        cap = np.pi * (r[2] + z) ** 2 * (2 * r[2] - z) / 3
+        assert abs(got[2][2] / cap - 1) < 1e-12 and abs(got[2][3] / (full[2] - cap) - 1) < 1e-12, \
+            f"across xi = 0.3: {got[2][2:4]} vs {cap}, {full[2] - cap}"
+        assert abs(got[3][7] / full[3] - 1) < 1e-14 and np.count_nonzero(got[3]) == 1, f"inside slab 7: {got[3]}"
+        # all four at once, and 2000 random spheres up to 3 slabs in radius: the slabs sum to the spheres' volume
+        both = loc.slab_solid_volumes(x, r, L, hkl, K)
+        assert np.abs(both - got.sum(0)).max() < 1e-12 * full.sum(), "one call differs from the spheres one by one"
+        xr, rr = rng.random((2000, 3)) * L, rng.random(2000) * 3 * w
+        total = (4 / 3 * np.pi * rr ** 3).sum()
+        assert abs(loc.slab_solid_volumes(xr, rr, L, hkl, K).sum() / total - 1) < 1e-12, "slabs do not sum to the solid"
+    # each slab is 1/K of the cell for any integer mode (also with gcd 2: two bands a period): 10^6 uniform points
+    # put 0.1 +- 3e-4 in each slab; 2e-3 is over 6 sigma
+    pts = rng.random((1000000, 3)) * L
+    for hkl in ((1, 0, -2), (1, 1, 2), (2, 0, 2)):
+        frac = np.bincount(np.floor(loc.mode_coordinate(pts, L, hkl) * K).astype(np.int64), minlength=K) / len(pts)
+        assert np.abs(frac - 1 / K).max() < 2e-3, f"{hkl}: slab shares {frac}"
+    print("slab volumes: exact against the integration, sum to the solid to 1e-12, slabs tile the cell")
+
+
+def band_u(xi, d, gamma, delta, t, n):
+    """The imposed band: non-affine displacement d P(xi) (gamma t + delta n), P periodic and piecewise linear, slope 1
+    in the band xi in [0.4, 0.6) (slabs 4 and 5 of 10) and -1/4 outside: shear gamma and dilation delta in the band
+    (dU/dzeta, zeta = xi d), -gamma/4 and -delta/4 outside (the net jump over a period is zero)."""
+    y = (xi - 0.5 + 0.5) % 1.0 - 0.5
+    P = np.where(np.abs(y) <= 0.1, y, np.sign(y) * (0.1 - (np.abs(y) - 0.1) / 4))
+    return d * P[:, None] * (gamma * t + delta * n)
+
+
+def check_band_profile(tmp):
+    """A banded sample: its band is found in the right slabs, with the imposed shear and dilation, and its void ratio
+    rises as imposed while the outside's falls."""
+    # the rule: above the mean by more than half the way to the largest (mean 2 in both; the largest 6 and 7)
+    for q, want in (([1, 1, 1, 1, 1, 1, 2, 5, 6, 1], [7, 8]), ([1, 1, 1, 1, 1, 1, 1, 2, 4, 7], [9]), ([3] * 10, [0])):
+        got = np.flatnonzero(loc.band_slabs(np.array(q, float))).tolist()
+        assert got == want, f"band slabs of {q}: {got}, expected {want}"
+    rng = np.random.default_rng(5)
+    n_p, K, r = 40000, 10, 1.8e-3
+    L0 = np.array([0.10, 0.12, 0.15])
+    E = np.array([0.10, -0.04, -0.03])  # compression positive
+    L1 = L0 * np.exp(-E)
+    Lm = 0.5 * (L0 + L1)
+    gamma, delta = 0.4, 0.3
+    d_m, n = loc.mode_geometry(Lm, (1, 0, 1))  # the tool's convention: gradients in the mean cell
+    t = np.array([-n[2], 0.0, n[0]])  # the shear that shortens axis 1, as the affine part does
+    # xi evenly spaced (N/K a slab, symmetric about each slab's middle): each slab's mean displacement is the profile
+    # at its middle and its solid is the continuum's, with no sampling noise
+    xi = (rng.permutation(n_p) + 0.5) / n_p
+    s0 = on_planes(xi, L0, (1, 0, 1), rng) / L0
+    u = band_u(xi, d_m, gamma, delta, t, n)
+    Lh = L0 * np.exp(-E / 2)
+    ids = np.arange(n_p) + 3
+    path = os.path.join(tmp, "banded.h5")
+    snaps = [(0, ids, s0, L0), (1000, ids, (s0 + 0.5 * u / Lh) % 1, Lh), (2000, ids, (s0 + u / L1) % 1, L1)]
+    write_results(path, snaps, rng, n_rows=21)  # series rows every 100 steps: one at each snapshot
+    v_s = 4 / 3 * np.pi * r ** 3
+    with h5py.File(path, "r+") as f:  # the radii, and the series' e as the app computes it: V_cell / V_s - 1
+        for g in f["snapshots"].values():
+            g["radius"][...] = r
+        V = np.prod(L0 * np.exp(-f["series/strain"][:]), axis=1)
+        f["series/e"][...] = V / (n_p * v_s) - 1
+    with h5py.File(path, "r") as f:
+        b = loc.band_profile(f, path, loc.read_series(f, path), loc.default_grid(n_p), K)
+    assert b["hkl"] == (1, 0, 1) and b["rows"] is not None, f"band mode {b['hkl']}: {b.get('note')}"
+    assert np.flatnonzero(b["band"]).tolist() == [4, 5], f"band slabs {np.flatnonzero(b['band'])}, imposed 4, 5"
+
+    # the slab strain, as the tool defines it, from the profile at the slab middles: exact but for round-off
+    # (u ~ 1e-3 m: ~1e-19 m in it, over 2 slabs of 8 mm: ~1e-17; 2e-16 seen)
+    U = band_u((np.arange(K) + 0.5) / K, d_m, gamma, delta, t, n)
+    dU = (np.roll(U, -1, 0) - np.roll(U, 1, 0)) / (2 * d_m / K)
+    grad = dU[:, :, None] * n
+    deps = -(np.diag(np.log(L1 / L0)) + 0.5 * (grad + np.swapaxes(grad, 1, 2)))
+    dev = deps - np.trace(deps, axis1=1, axis2=2)[:, None, None] * np.eye(3) / 3
+    q_ref = np.sqrt(2 / 3 * np.sum(dev * dev, axis=(1, 2)))
+    v_ref = np.trace(deps, axis1=1, axis2=2)
+    assert np.abs(b["deps_q"] - q_ref).max() < 1e-12 and np.abs(b["deps_v"] - v_ref).max() < 1e-12, \
+        f"slab strain: deps_q {b['deps_q']} vs {q_ref}, deps_v {b['deps_v']} vs {v_ref}"
+    # the band slabs see the imposed shear and dilation through a central difference over 2 slabs, one of them
+    # outside: (P(0.55) - P(0.35)) / 0.2 = (0.05 + 0.0875) / 0.2 = 11/16 of them (exact, as above)
+    aff = -np.log(L1 / L0)
+    dev_band = -11 / 16 * (0.5 * gamma * (np.outer(t, n) + np.outer(n, t)) + delta * (np.outer(n, n) - np.eye(3) / 3))
+    dev_band += np.diag(aff - aff.sum() / 3)
+    q_band = math.sqrt(2 / 3 * np.sum(dev_band * dev_band))
+    for j in (4, 5):
+        assert abs(b["deps_v"][j] - (aff.sum() - 11 / 16 * delta)) < 1e-12, f"band deps_v {b['deps_v'][j]}"
+        assert abs(b["deps_q"][j] - q_band) < 1e-12, f"band deps_q {b['deps_q'][j]} vs {q_band}"
+
+    # void ratios. First snapshot: uniform, every slab at the whole's e. Last: a particle moves across the planes by
+    # u . n_1 = kappa P(xi_0), n_1 = (1/L1_1, 0, 1/L1_3) (the shear too a little: t is in the mean cell's planes, not
+    # quite in the last's), so the band's material spreads by c = 1 + kappa (xi_1 = 0.5 + c (xi_0 - 0.5)) and its
+    # slabs hold 1/c of their solid; its edges end 0.1 kappa d_1 = 2.3 mm beyond the slabs' planes, more than r: no
+    # sphere of the outside reaches in. The comb of centres (d / N = 2 um apart) sums the caps as a midpoint rule
+    # whose error is second order in its step over r (~1e-6 squared); 1e-11 seen, 1e-8 on 1 + e leaves a margin.
+    rows = b["rows"]
+    assert [row["step"] for row in rows] == [0, 1000, 2000], [row["step"] for row in rows]
+    e_first, e_last = np.prod(L0) / (n_p * v_s) - 1, np.prod(L1) / (n_p * v_s) - 1
+    kappa = d_m * (gamma * t + delta * n) @ (np.array([1.0, 0.0, 1.0]) / L1)
+    c = 1 + kappa
+    assert 0.1 * kappa * loc.mode_geometry(L1, (1, 0, 1))[0] > r, "the band's edge is within a radius of its planes"
+    expect = dict(first=(e_first, e_first, e_first),
+                  last=(c * (1 + e_last) - 1, 0.8 * np.prod(L1) / (n_p * v_s * (1 - 0.2 / c)) - 1, e_last))
+    for row, key in ((rows[0], "first"), (rows[-1], "last")):
+        got = (row["e_band"], row["e_outside"], row["e_whole"])
+        err = np.abs((1 + np.array(got)) / (1 + np.array(expect[key])) - 1).max()
+        assert err < 1e-8, f"{key}: {got} vs {expect[key]}"
+    assert np.abs(rows[0]["e_slab"] - e_first).max() < 1e-8 * (1 + e_first), f"first e per slab {rows[0]['e_slab']}"
+    assert np.abs(rows[-1]["e_slab"][[4, 5]] - expect["last"][0]).max() < 1e-8 * (1 + e_last), rows[-1]["e_slab"]
+    # the cell compacts (eps_v 0.03) while the band loosens: the outside ends below the whole
+    first, last = rows[0], rows[-1]
+    assert last["e_band"] > first["e_band"] and last["e_outside"] < last["e_whole"] < first["e_whole"], \
+        "the band must loosen, the rest compact"
+    # e of all slabs is the cell's, V / V_s - 1 from the total volumes, and the series' e (the same formula), to
+    # round-off: the slabs' solid adds 40,000 spheres' pieces, at worst 4e4 x 1.1e-16 = 4.4e-12 of it (1.1e-13 seen)
+    for row, L in zip(rows, (L0, L0 * np.exp(-E / 2), L1)):
+        e_cell = np.prod(L) / (n_p * v_s) - 1
+        assert abs(row["e_whole"] / e_cell - 1) < 1e-11 and abs(row["e_series"] / e_cell - 1) < 1e-11, \
+            f"step {row['step']}: e_whole {row['e_whole']}, series {row['e_series']}, V / V_s - 1 = {e_cell}"
+    print(f"band profile: slabs 4, 5 found; e_band {rows[0]['e_band']:.4f} -> {rows[-1]['e_band']:.4f}, e_outside "
+          f"{rows[0]['e_outside']:.4f} -> {rows[-1]['e_outside']:.4f} (imposed {expect['last'][0]:.4f}, "
+          f"{expect['last'][1]:.4f}); band deps_q {b['deps_q'][4]:.4f}, deps_v {b['deps_v'][4]:+.4f}")
+
+    # the command: the band CSV (10 significant digits), the summary's section and a printed line
+    out = os.path.join(tmp, "out-band")
+    res = run(path, "--out", out)
+    assert res.returncode == 0, f"banded: exit {res.returncode}, {res.stderr}"
+    assert "band profile: whole-test mode (1,0,1)" in res.stdout and "band slab(s) 4,5" in res.stdout, res.stdout
+    table = list(csv.DictReader(open(os.path.join(out, "banded-localization-band.csv"))))
+    assert list(table[0]) == ["step", "eps_1", "e_band", "e_outside", "e_whole"] + [f"e_{j}" for j in range(K)], \
+        list(table[0])
+    assert [int(row["step"]) for row in table] == [0, 1000, 2000], table
+    for row, ref in zip(table, rows):
+        for key in ("e_band", "e_outside", "e_whole"):
+            assert abs(float(row[key]) / ref[key] - 1) < 1e-9, f"CSV {key} {row[key]} vs {ref[key]}"
+    assert abs(float(table[-1]["eps_1"]) - E[0]) < 1e-9, f"eps_1 {table[-1]['eps_1']} vs {E[0]}"
+    md = open(os.path.join(out, "banded-localization.md")).read()
+    assert "## Band profile" in md and "Band slab(s): 4,5" in md, md[md.find("## Band"):]
+
+
+def check_no_band(tmp):
+    """An increment with no band (affine, with small random non-affine motion): 'no band', no profile, exit 0; and
+    --slabs must be an integer >= 4."""
+    rng = np.random.default_rng(3)
+    n_p = 8000
+    s0 = rng.random((n_p, 3))
+    L1 = L0 * np.exp(-E1)
+    ids = np.arange(n_p)
+    s1 = (s0 + 2e-5 * rng.standard_normal((n_p, 3)) / L1) % 1.0  # 20 um of noise, uncorrelated
+    path = os.path.join(tmp, "uniform.h5")
+    write_results(path, [(0, ids, s0, L0), (1000, ids, s1, L1)], rng)
+    out = os.path.join(tmp, "out-uniform")
+    os.makedirs(out)
+    stale = os.path.join(out, "uniform-localization-band.csv")
+    open(stale, "w").write("an earlier run's profile\n")
+    res = run(path, "--out", out)
+    assert res.returncode == 0, f"uniform: exit {res.returncode}, {res.stderr}"
+    assert "no band" in res.stdout, res.stdout
+    md = open(os.path.join(out, "uniform-localization.md")).read()
+    assert "## Band profile" in md and "No band" in md, md[md.find("## Band"):]
+    assert not os.path.exists(stale), "a stale band profile was left beside a run with no band"
+    print([ln for ln in res.stdout.splitlines() if "no band" in ln][0].split(": ", 2)[-1])
+    for bad in ("2", "x"):
+        res = run(path, "--slabs", bad)
+        assert res.returncode == 2 and "--slabs" in res.stderr, f"--slabs {bad}: exit {res.returncode}, {res.stderr!r}"
+
+
 def main():
     rng = np.random.default_rng(7)
     ids0 = rng.permutation(np.arange(10 * N))[:N] + 5  # not 0..N-1: matching must use the ids
@@ -223,6 +429,9 @@ def main():
         assert r.returncode == 2 and "one.h5" in r.stderr and "snapshot_interval" in r.stderr, \
             f"one snapshot: exit {r.returncode}, {r.stderr!r}"
         assert not os.path.exists(os.path.join(tmp, "one-localization.csv")), "outputs written for a bad input"
+        check_slab_volumes()
+        check_band_profile(tmp)
+        check_no_band(tmp)
     print("test_localization: all checks passed")
     return 0
 
