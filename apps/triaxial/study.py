@@ -35,7 +35,8 @@ Presets (reference first):
           E x 1 | 1/10 1/100; e 0.5 | 0.1 0.9; N 2000 | 500 1000 5000 20000; seeds 2, 3, 4.
           The I = 1e-5 reference alone is ~2e8 steps: days on 16 cores. Axes can be narrowed.
   inertia the inertial number alone: 2000 spheres to 10 % at dt 0.2 dt_R; I 1e-5 | 3e-5 1e-4 3e-4
-          1e-3 3e-3 1e-2. ~1 h on 2 cores. No seeds: give --tolerance (e.g. the size study's scatter).
+          1e-3 3e-3 1e-2. ~1 h on 2 cores. No seeds, so --tolerance is required for every metric
+          (e.g. the size study's scatter at N = 2000: peak=0.014,res=0.016,e=0.004,d=0.015).
   size    the sample size on its own: N 500, 1000, 2000, 5000, 20000 x seeds 1, 2, 3, at dt 0.2 dt_R
           and I 1e-3, to 20 %; every run prepares its own sample and writes 20 particle snapshots
           (for `triaxial localization`). Per N: mean and standard deviation over the seeds of every
@@ -461,6 +462,13 @@ def main():
     if "seed" in axes:
         plan += [(f"seed_{v}", "seed", dict(seed=v), False) for v in preset["seeds"]]
 
+    # Without other seeds there is no noise floor: every error would pass a NaN tolerance.
+    n_seeds = 1 + sum(1 for _, axis, _, _ in plan if axis == "seed")
+    missing = [key for key, value in names.items() if value not in tolerances]
+    if n_seeds < 2 and missing:
+        fail(f"no other seeds run (preset {args.preset}, --axes {args.axes}), so no noise floor to judge the errors "
+             f"by: give --tolerance for {', '.join(missing)} (e.g. the size study's scatter at this N)")
+
     os.makedirs(args.out, exist_ok=True)
     runs = []
     ref_out = None
@@ -532,8 +540,12 @@ def main():
                      f"{m['I']:.2g} | {m['max_overlap']:.3g} | {m['steps']:.0f} | {m['wall']:.1f} | "
                      f"{m['psteps_per_s'] / 1e6:.2f} | {m['err_peak_eta']:.4f} | {m['err_res_eta']:.4f} | "
                      f"{m['err_res_e']:.4f} | {m['err_max_dilation']:.3f} |")
-    lines += ["", "Noise floor (standard deviation over the reference and the other seeds, same settings): " +
-              ", ".join(f"{label} {noise[k]:.4f}" for k, label in METRICS) + ".", ""]
+    if len(seeds) > 1:
+        lines += ["", "Noise floor (standard deviation over the reference and the other seeds, same settings): " +
+                  ", ".join(f"{label} {noise[k]:.4f}" for k, label in METRICS) + ".", ""]
+    else:
+        lines += ["", "Noise floor: not measured (no other seeds were run); the tolerance below is what stands "
+                  "against the errors.", ""]
     tol_src = "the noise floor" if not tolerances else "--tolerance " + args.tolerance
     lines.append(f"Tolerance ({tol_src}): " + ", ".join(f"{label} {tol[k]:.4f}" for k, label in METRICS) + ".")
     lines.append("")
@@ -568,6 +580,8 @@ def main():
         ax.plot([pts[k][0] for k in front], [max(pts[k][1], 1e-5) for k in front], "k--", lw=0.8, label="Pareto front")
         if math.isfinite(noise[key]) and noise[key] > 0:
             ax.axhline(noise[key], color="0.5", lw=0.8, ls=":", label="noise floor (seeds)")
+        if key in tolerances:
+            ax.axhline(tolerances[key], color="C3", lw=0.8, ls="-.", label="--tolerance")
         ax.set_xscale("log")
         ax.set_yscale("log")
         ax.set_xlabel("cost: particle-steps per unit axial strain")

@@ -62,6 +62,12 @@ assert r.returncode == 0 and " --out " not in r.stdout, r.stdout
 # Bad input: exit 2 with one line naming the option.
 r = subprocess.run([triaxial, "study", config, "--axes", "dt,bogus", "--out", out], capture_output=True, text=True)
 assert r.returncode == 2 and "bogus" in r.stderr, (r.returncode, r.stderr)
+# No other seeds, so no noise floor: the errors need a tolerance for every metric, or nothing runs.
+fresh = os.path.join(work, "study-noseeds")
+r = subprocess.run([triaxial, "study", config, "--preset", "smoke", "--axes", "dt", "--tolerance", "peak=0.05",
+                    "--out", fresh], capture_output=True, text=True)
+assert r.returncode == 2 and "--tolerance" in r.stderr and "res, e, d" in r.stderr, (r.returncode, r.stderr)
+assert not os.path.exists(fresh), "a study with no tolerance to judge by created its folder"
 
 # The size preset: N x seeds at one setting, every sample prepared on its own; the largest N with
 # its first seed only (preset largest_seeds).
