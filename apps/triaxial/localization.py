@@ -614,24 +614,21 @@ def write_figure(path, src, res, best):
     plt.close(fig)
 
 
-def grid_arg(v):
-    try:
-        g = int(v)
-    except ValueError:
-        g = None
-    if g is None or g < 3:
-        raise argparse.ArgumentTypeError(f"must be an integer >= 3 (bins along each cell edge), got {v!r}")
-    return g
+def int_at_least(low, what):
+    """An argparse type: an integer >= low, else an error saying what the number counts."""
+    def parse(v):
+        try:
+            k = int(v)
+        except ValueError:
+            k = None
+        if k is None or k < low:
+            raise argparse.ArgumentTypeError(f"must be an integer >= {low} ({what}), got {v!r}")
+        return k
+    return parse
 
 
-def slabs_arg(v):
-    try:
-        k = int(v)
-    except ValueError:
-        k = None
-    if k is None or k < 4:
-        raise argparse.ArgumentTypeError(f"must be an integer >= 4 (slabs across the band's period), got {v!r}")
-    return k
+grid_arg = int_at_least(3, "bins along each cell edge")
+slabs_arg = int_at_least(4, "slabs across the band's period")
 
 
 def main():
