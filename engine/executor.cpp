@@ -1,6 +1,7 @@
 #include "engine/executor.hpp"
 
 #include "engine/assert.hpp"
+#include "engine/build_arch.hpp"
 #include "engine/executor_tbb.hpp"
 
 #include <oneapi/tbb/blocked_range.h>
@@ -13,6 +14,9 @@
 namespace sandcell {
 
 Executor::Executor(ExecutorConfig config) : backend_(config.backend) {
+  // Every world has an executor: this reference links engine/cpu_guard.cpp into every program, and
+  // with it the startup check that stops a build for a newer CPU with a message (build_arch.hpp).
+  static_cast<void>(build_arch());
   SANDCELL_CHECK(config.threads >= 0, "threads must be >= 0 (0 = all hardware threads), got " +
                                           std::to_string(config.threads));
   if (backend_ == Backend::serial) {

@@ -1,5 +1,6 @@
 #include "engine/results.hpp"
 
+#include "engine/build_arch.hpp"
 #include "engine/field_io.hpp"
 #include "engine/hdf5.hpp"
 #include "engine/version.hpp"
@@ -127,6 +128,7 @@ ResultsFile ResultsFile::create(const std::filesystem::path& path, std::string_v
   root.set_string("format", k_format);
   root.set_value<std::int64_t>("schema_version", k_results_schema);
   root.set_string("software_version", version());
+  root.set_string("software_arch", build_arch());  // SANDCELL_ARCH: same results for every value
   root.set_string("config", config_text);
   for (const auto& [name, value] : attributes) root.set_string(name, value);
   impl->series = root.create_group("series");

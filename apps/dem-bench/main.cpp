@@ -18,6 +18,7 @@
 // the share of the step loop spent in each system (the engine's own timers), and a digest of the
 // final state (FNV-1a over the bytes of ids, positions, velocities, spins, contact histories and the
 // cell): equal digests mean bitwise equal runs, across thread counts, machines or versions.
+#include "engine/build_arch.hpp"
 #include "engine/packing.hpp"
 #include "engine/world.hpp"
 #include "systems/stress.hpp"
@@ -221,13 +222,13 @@ int main(int argc, char** argv) {
   const unsigned long long digest = state_digest(world.state());
 
   if (json) {
-    std::printf("{\"scene\": \"%s\", \"particles\": %zu, \"steps\": %ld, \"threads\": %d, \"backend\": \"%s\",\n"
+    std::printf("{\"scene\": \"%s\", \"arch\": \"%s\", \"particles\": %zu, \"steps\": %ld, \"threads\": %d, \"backend\": \"%s\",\n"
                 " \"deform\": %.6g, \"compat\": %s, \"wall_s\": %.6f, \"particle_steps_per_s\": %.6e,\n"
                 " \"contacts_per_particle_start\": %.6f, \"contacts_per_particle\": %.6f, \"rebuilds\": %llu,\n"
                 " \"peak_mib\": %.1f, \"mean_stress_start_pa\": %.6e, \"mean_stress_pa\": %.6e,\n"
                 " \"stress_pa\": [%.6e, %.6e, %.6e, %.6e, %.6e, %.6e], \"lz\": %.9f, \"digest\": \"%016llx\",\n"
                 " \"system_s\": {",
-                scene.c_str(), n, steps, world.executor().threads(), serial ? "serial" : "tbb", deform,
+                scene.c_str(), std::string(build_arch()).c_str(), n, steps, world.executor().threads(), serial ? "serial" : "tbb", deform,
                 model.contact.liggghts_compat ? "true" : "false", wall, rate, 2.0 * c0 / n, 2.0 * c1 / n,
                 static_cast<unsigned long long>(builds), peak_mib, s0.trace() / 3, s1.trace() / 3, s1(0, 0), s1(1, 1),
                 s1(2, 2), s1(0, 1), s1(0, 2), s1(1, 2), world.state().cell.length[2], digest);
@@ -240,6 +241,8 @@ int main(int argc, char** argv) {
   std::printf("particles        %zu\n", n);
   std::printf("steps            %ld\n", steps);
   std::printf("threads          %d (%s)\n", world.executor().threads(), serial ? "serial backend" : "tbb");
+  std::printf("build arch       %s (SANDCELL_ARCH; results are bitwise the same for every value)\n",
+              std::string(build_arch()).c_str());
   std::printf("wall (step loop) %.3f s\n", wall);
   std::printf("throughput       %.3f M particle-steps/s\n", rate / 1e6);
   std::printf("contacts/particle %.4f at start, %.4f at end\n", 2.0 * c0 / n, 2.0 * c1 / n);

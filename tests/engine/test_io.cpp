@@ -3,6 +3,7 @@
 // their path, results series survive a killed run and are cut back on resume, and the XDMF sidecar
 // points at datasets that exist. Files are read back with the HDF5 C API directly where that makes
 // the check independent of the code under test.
+#include "engine/build_arch.hpp"
 #include "engine/checkpoint.hpp"
 #include "engine/hdf5.hpp"
 #include "engine/results.hpp"
@@ -410,6 +411,7 @@ TEST_CASE("results series: append and flush survive a killed writer, reopen cuts
   CHECK(root.get_string("config") == "[run]\nname = \"series\"\n");
   CHECK(root.get_string("campaign") == "io test");
   CHECK(root.get_string("software_version") == version());
+  CHECK(root.get_string("software_arch") == build_arch());
   CHECK(root.get_value<std::int64_t>("schema_version") == k_results_schema);
   CHECK(root.open_group("series").open_dataset("time").get_string("units") == "s");
   const h5::Group test = root.open_group("tests").open_group("b0.5");
