@@ -25,6 +25,8 @@ unsigned required_isa();
 unsigned present_isa();
 /// The names of the features in `required` and not in `present`, in table order.
 std::vector<std::string> missing_isa(unsigned required, unsigned present);
+/// What the startup check prints before it stops the program (one line).
+std::string unsupported_cpu_message(std::string_view arch, const std::vector<std::string>& missing);
 
 }  // namespace detail
 }  // namespace sandcell

@@ -5,6 +5,7 @@
 #include <array>
 #include <cstdio>
 #include <cstdlib>
+#include <iterator>
 
 #ifndef SANDCELL_BUILD_ARCH
 #error "SANDCELL_BUILD_ARCH must be defined by the build"
@@ -15,25 +16,22 @@ namespace sandcell {
 namespace {
 
 // The features of the x86-64 levels v2-v4 that GCC and Clang predefine a macro for, in the bit
-// order of detail::required_isa() (engine/build_arch.cpp).
-constexpr std::array<const char*, 18> isa_feature_names = {
-    "sse3", "ssse3", "sse4.1", "sse4.2", "popcnt", "avx",      "avx2",     "bmi",      "bmi2",
-    "f16c", "fma",   "lzcnt",  "movbe", "avx512f", "avx512vl", "avx512bw", "avx512dq", "avx512cd"};
+// order of detail::required_isa() (engine/build_arch.cpp). One list gives both the names and the
+// CPU queries: __builtin_cpu_supports takes a string literal only.
+#define SANDCELL_ISA_FEATURES(X)                                                                                 \
+  X("sse3") X("ssse3") X("sse4.1") X("sse4.2") X("popcnt") X("avx") X("avx2") X("bmi") X("bmi2") X("f16c")    \
+  X("fma") X("lzcnt") X("movbe") X("avx512f") X("avx512vl") X("avx512bw") X("avx512dq") X("avx512cd")
+
+#define SANDCELL_ISA_NAME(name) name,
+constexpr std::array isa_feature_names = {SANDCELL_ISA_FEATURES(SANDCELL_ISA_NAME)};
+#undef SANDCELL_ISA_NAME
 
 // A startup check, before any static constructor of the rest of the library (priority 101 runs
 // before the default): their code may already use the missing instructions.
 [[gnu::constructor(101)]] void stop_on_unsupported_cpu() {
   const std::vector<std::string> missing = missing_cpu_features();
   if (missing.empty()) return;
-  std::string list;
-  for (const std::string& f : missing) {
-    if (!list.empty()) list += ", ";
-    list += f;
-  }
-  std::fprintf(stderr,
-               "sandcell: this build's kernels were compiled for %s (SANDCELL_ARCH), and this CPU lacks %s: "
-               "rebuild on this machine, or with cmake -DSANDCELL_ARCH=portable\n",
-               SANDCELL_BUILD_ARCH, list.c_str());
+  std::fputs(detail::unsupported_cpu_message(build_arch(), missing).c_str(), stderr);
   std::_Exit(2);
 }
 
@@ -50,17 +48,10 @@ namespace detail {
 unsigned present_isa() {
 #if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
   __builtin_cpu_init();  // constructors may run before the compiler's own initialization of this
-  // __builtin_cpu_supports takes a string literal only: one call per feature.
-  const bool has[isa_feature_names.size()] = {
-      __builtin_cpu_supports("sse3") != 0,     __builtin_cpu_supports("ssse3") != 0,
-      __builtin_cpu_supports("sse4.1") != 0,   __builtin_cpu_supports("sse4.2") != 0,
-      __builtin_cpu_supports("popcnt") != 0,   __builtin_cpu_supports("avx") != 0,
-      __builtin_cpu_supports("avx2") != 0,     __builtin_cpu_supports("bmi") != 0,
-      __builtin_cpu_supports("bmi2") != 0,     __builtin_cpu_supports("f16c") != 0,
-      __builtin_cpu_supports("fma") != 0,      __builtin_cpu_supports("lzcnt") != 0,
-      __builtin_cpu_supports("movbe") != 0,    __builtin_cpu_supports("avx512f") != 0,
-      __builtin_cpu_supports("avx512vl") != 0, __builtin_cpu_supports("avx512bw") != 0,
-      __builtin_cpu_supports("avx512dq") != 0, __builtin_cpu_supports("avx512cd") != 0};
+#define SANDCELL_ISA_PRESENT(name) __builtin_cpu_supports(name) != 0,
+  const bool has[] = {SANDCELL_ISA_FEATURES(SANDCELL_ISA_PRESENT)};
+#undef SANDCELL_ISA_PRESENT
+  static_assert(std::size(has) == isa_feature_names.size());
   unsigned bits = 0;
   for (std::size_t k = 0; k < isa_feature_names.size(); ++k)
     if (has[k]) bits |= 1u << k;
@@ -68,6 +59,16 @@ unsigned present_isa() {
 #else
   return 0;  // no x86 features are required either (required_isa() is 0 off x86)
 #endif
+}
+
+std::string unsupported_cpu_message(std::string_view arch, const std::vector<std::string>& missing) {
+  std::string list;
+  for (const std::string& f : missing) {
+    if (!list.empty()) list += ", ";
+    list += f;
+  }
+  return "sandcell: this build's code was compiled for " + std::string(arch) + " (SANDCELL_ARCH), and this CPU lacks " +
+         list + ": rebuild on this machine, or with cmake -DSANDCELL_ARCH=portable\n";
 }
 
 std::vector<std::string> missing_isa(unsigned required, unsigned present) {
