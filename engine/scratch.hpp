@@ -102,6 +102,13 @@ class Scratch {
   // True while forces are evaluated at scene setup: contact laws then leave their history untouched
   // (as LAMMPS/LIGGGHTS do in `run 0` setup), so setting up a scene does not advance it.
   bool setup = false;
+  // The final half kick of a step and the first half kick of the next use the same forces, and
+  // nothing in between reads velocities. Within World::step(n), every step but the last leaves its
+  // final kick to the next integrate_initial, which applies both in one pass over the particles
+  // (the same two additions in the same order: bitwise the same as two passes). World sets
+  // `defer_final_kick` per step; integrate_final sets `kick_pending` instead of kicking.
+  bool defer_final_kick = false;
+  bool kick_pending = false;
 
   template <Component C>
   const auto& read() const {

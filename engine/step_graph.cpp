@@ -100,6 +100,10 @@ void StepGraph::run(const Model& model, State& state, Scratch& scratch) {
   });
 }
 
+void StepGraph::run_one(std::size_t k, const Model& model, State& state, Scratch& scratch) {
+  timed_run(systems_[k], access_[k], seconds_[k], model, state, scratch, exec_);
+}
+
 std::size_t StepGraph::find(std::string_view name) const {
   for (std::size_t k = 0; k < systems_.size(); ++k)
     if (systems_[k].name == name) return k;

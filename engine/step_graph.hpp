@@ -25,6 +25,8 @@ class StepGraph {
 
   /// Runs every system once, respecting the edges.
   void run(const Model& model, State& state, Scratch& scratch);
+  /// Runs system k alone (its time counted in timers()), e.g. a kick left over from the last step.
+  void run_one(std::size_t k, const Model& model, State& state, Scratch& scratch);
 
   std::size_t size() const { return systems_.size(); }
   const SystemSpec& system(std::size_t k) const { return systems_[k]; }

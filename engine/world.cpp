@@ -152,7 +152,8 @@ World::World(Model model, State state, std::vector<SystemSpec> systems, Executor
     : model_(finalized(std::move(model))),
       state_(prepared(std::move(state), model_)),
       exec_(exec),
-      graph_(std::move(systems), exec_) {
+      graph_(std::move(systems), exec_),
+      defer_kick_(can_defer_kick(graph_)) {
   if (graph_.find(Broadphase::name) == graph_.size()) return;
   if (!initial_forces) {
     // The state holds its list and the forces of its last step (a checkpoint, or the previous
@@ -180,12 +181,49 @@ void World::check_health() const {
 }
 
 void World::step(std::uint64_t n) {
-  for (std::uint64_t s = 0; s < n; ++s) {
-    graph_.run(model_, state_, scratch_);
-    ++state_.clock.step;
-    state_.clock.time += model_.dt;
-    check_health();
+  step_until(n, [](Cell&, const Clock&) { return false; });
+}
+
+std::uint64_t World::step_until(std::uint64_t n, FunctionRef<bool(Cell&, const Clock&)> stop) {
+  std::uint64_t done = 0;
+  try {
+    scratch_.defer_final_kick = defer_kick_;
+    while (done < n) {
+      graph_.run(model_, state_, scratch_);
+      ++state_.clock.step;
+      state_.clock.time += model_.dt;
+      ++done;
+      check_health();
+      if (stop(state_.cell, state_.clock)) break;
+    }
+  } catch (...) {
+    finish_kick();  // the state handed back is the end of a step, as without the deferral
+    throw;
   }
+  finish_kick();
+  return done;
+}
+
+void World::finish_kick() {
+  scratch_.defer_final_kick = false;
+  if (!scratch_.kick_pending) return;
+  scratch_.kick_pending = false;
+  graph_.run_one(graph_.find(IntegrateFinal::name), model_, state_, scratch_);
+}
+
+bool World::can_defer_kick(const StepGraph& graph) {
+  // Deferring integrate_final's kick to the next integrate_initial is exact only if nothing runs
+  // between them: integrate_final must come after every other system of the step, and
+  // integrate_initial before every other (a system unordered with them does not conflict with
+  // them, so it neither reads the velocities nor writes what the kicks read).
+  const std::size_t n = graph.size();
+  const std::size_t first = graph.find(IntegrateInitial::name), last = graph.find(IntegrateFinal::name);
+  if (first == n || last == n) return false;
+  for (std::size_t k = 0; k < n; ++k) {
+    if (k != first && graph.ordered(k, first)) return false;
+    if (k != last && graph.ordered(last, k)) return false;
+  }
+  return true;
 }
 
 }  // namespace sandcell

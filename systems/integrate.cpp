@@ -12,9 +12,25 @@ void half_kick(double half_dt, const Vec3* __restrict f, const Vec3* __restrict 
     w[k] += t[k] * (half_dt * inv_i[k]);
   }
 }
+
+// The last step's deferred final half kick, then this step's first half kick and the drift, in one
+// pass over [b, e). Each kick adds the same increment as half_kick, in the same order.
+void two_kicks_drift(double dt, const Vec3& rate, const Vec3* __restrict f, const Vec3* __restrict t,
+                     const double* __restrict m, const double* __restrict inv_i, Vec3* __restrict x,
+                     Vec3* __restrict v, Vec3* __restrict w, std::size_t b, std::size_t e) {
+  const double half_dt = 0.5 * dt;
+  for (std::size_t k = b; k < e; ++k) {
+    const Vec3 dv = f[k] * (half_dt / m[k]);
+    const Vec3 dw = t[k] * (half_dt * inv_i[k]);
+    const Vec3 vk = (v[k] + dv) + dv;
+    v[k] = vk;
+    w[k] = (w[k] + dw) + dw;
+    x[k] += (vk + rate.cwiseProduct(x[k])) * dt;
+  }
+}
 }  // namespace
 
-void IntegrateInitial::run(const Model& model, State& state, Scratch&, Executor& exec) {
+void IntegrateInitial::run(const Model& model, State& state, Scratch& scratch, Executor& exec) {
   const double dt = model.dt;
   const auto& force = state.read<Component::particle_force>();
   const auto& torque = state.read<Component::particle_torque>();
@@ -37,14 +53,25 @@ void IntegrateInitial::run(const Model& model, State& state, Scratch&, Executor&
   Vec3* x = position.data();
   Vec3* v = velocity.data();
   Vec3* w = omega.data();
-  exec.parallel_for(position.size(), k_particle_grain, [&](std::size_t b, std::size_t e) {
-    half_kick(0.5 * dt, f, t, m, inv_i, v, w, b, e);
-    for (std::size_t k = b; k < e; ++k) x[k] += (v[k] + rate.cwiseProduct(x[k])) * dt;
-  });
+  if (scratch.kick_pending) {  // the last step's final kick was left to this pass (scratch.hpp)
+    scratch.kick_pending = false;
+    exec.parallel_for(position.size(), k_particle_grain, [&](std::size_t b, std::size_t e) {
+      two_kicks_drift(dt, rate, f, t, m, inv_i, x, v, w, b, e);
+    });
+  } else {
+    exec.parallel_for(position.size(), k_particle_grain, [&](std::size_t b, std::size_t e) {
+      half_kick(0.5 * dt, f, t, m, inv_i, v, w, b, e);
+      for (std::size_t k = b; k < e; ++k) x[k] += (v[k] + rate.cwiseProduct(x[k])) * dt;
+    });
+  }
   cell.length = new_length;
 }
 
-void IntegrateFinal::run(const Model& model, State& state, Scratch&, Executor& exec) {
+void IntegrateFinal::run(const Model& model, State& state, Scratch& scratch, Executor& exec) {
+  if (scratch.defer_final_kick) {  // the next step's integrate_initial applies it (scratch.hpp)
+    scratch.kick_pending = true;
+    return;
+  }
   const double dt = model.dt;
   const Vec3* f = state.read<Component::particle_force>().data();
   const Vec3* t = state.read<Component::particle_torque>().data();

@@ -13,6 +13,9 @@
 // rebuilds the list (so they leave the cell by at most half a skin), and scenes without contacts
 // schedule the `wrap` system after this one (systems/wrap.hpp). Since the affine field D x is
 // homogeneous, a branch vector x_i - x_j - H n evolves the same with wrapped or unwrapped x.
+// Within one World::step(n) call, integrate_final may leave its kick to the next step's
+// integrate_initial, which then applies both half kicks and the drift in one pass: the same
+// additions in the same order, one pass over the particles less per step (Scratch::defer_final_kick).
 // Reads forces, torques, masses and inverse inertias; writes positions, velocities, angular
 // velocities, and the cell lengths (initial half only). Per-particle independent: a parallel_for.
 #include "engine/system.hpp"

@@ -202,13 +202,16 @@ int main(int argc, char** argv) {
 
   world.reset_timers();
   const auto t0 = std::chrono::steady_clock::now();
-  for (long s = 0; s < steps; ++s) {
-    if (deform > 0.0) {
-      // Engineering rate: L_z(t) = L_z0 (1 - RATE t), so D_zz = dL_z/dt / L_z = -RATE L_z0 / L_z.
-      world.state().cell.rate = Vec3(0.0, 0.0, -deform * lz0 / world.state().cell.length[2]);
-    }
-    world.step();
-  }
+  // Engineering rate: L_z(t) = L_z0 (1 - RATE t), so D_zz = dL_z/dt / L_z = -RATE L_z0 / L_z, set
+  // before each step from the current length.
+  const auto set_rate = [&](Cell& cell) {
+    if (deform > 0.0) cell.rate = Vec3(0.0, 0.0, -deform * lz0 / cell.length[2]);
+  };
+  set_rate(world.state().cell);
+  world.step_until(static_cast<std::uint64_t>(steps), [&](Cell& cell, const Clock&) {
+    set_rate(cell);
+    return false;
+  });
   const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 
   const Mat3 s1 = contact_stress(world.state(), world.executor());

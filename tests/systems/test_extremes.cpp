@@ -129,6 +129,32 @@ TEST_CASE("time step at 1.5 of the stability limit: the same chain blows up and 
   CHECK(steps < 20);
 }
 
+TEST_CASE("a run that blows up inside one step(n) call stops at the same step, with the same state and message, as one step per call") {
+  // step(n) defers the final half kick of all but its last step (World::defers_final_kick); when a
+  // step fails, the state handed back must still be the end of that step, as with step(1) calls.
+  Chain c = two_sphere_chain(1.5, 1e-4);
+  World single(c.model, c.state, ExecutorConfig{Backend::serial});
+  std::string single_error;
+  try {
+    for (int k = 0; k < 100000; ++k) single.step(1);
+  } catch (const SimulationError& e) {
+    single_error = e.what();
+  }
+  World batched(c.model, c.state, ExecutorConfig{Backend::tbb, 2});
+  REQUIRE(batched.defers_final_kick());
+  std::string batched_error;
+  try {
+    batched.step(100000);
+  } catch (const SimulationError& e) {
+    batched_error = e.what();
+  }
+  REQUIRE_FALSE(single_error.empty());
+  CHECK(batched_error == single_error);
+  CHECK(batched.state().clock.step == single.state().clock.step);
+  CHECK_FALSE(batched.scratch().kick_pending);
+  CHECK(first_difference(batched.state().particles, single.state().particles) == "");
+}
+
 TEST_CASE("a sphere crossing six skins in one step into contact: the list is rebuilt that step and the force is Hertz's") {
   // dt = 1e-7 s, skin 0.05 mm; sphere 0 starts 0.3 mm (6 skins) from sphere 1 and moves at
   // (0.3 mm + 2 um) / dt: after one step it overlaps sphere 1 by 2 um, a move under the smallest
