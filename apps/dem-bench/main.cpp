@@ -11,6 +11,12 @@
 // homogenizer, the servo with the kinetic stress), R rounds interleaved so that machine noise
 // falls on every variant alike; prints the median throughput of each and its ratio to the default.
 //
+//   dem-bench --scaling [--scene FILE] [--steps N] [--threads T] [--rounds R] [--deform RATE] [--json]
+// Thread scaling from 1 to T threads (default: all hardware threads): a 1-thread and a T-thread
+// world of the same scene advanced alternately, N steps at a time, R times; prints the median
+// throughput of each, the median of the R ratios, and whether the two final states are bitwise
+// equal (exit 1 if not).
+//
 // Scene A: fixed periodic box. Scene B (--deform RATE): box shortened along z at a constant
 // engineering strain rate RATE (1/s), x and y fixed, as LIGGGHTS `fix deform ... erate -RATE`.
 // Prints particles, steps, threads, wall seconds of the step loop, particle-steps per second, mean
@@ -34,6 +40,7 @@
 #include <cstdlib>
 #include <string>
 #include <string_view>
+#include <thread>
 
 #ifndef SANDCELL_BENCH_SCENE_DIR
 #define SANDCELL_BENCH_SCENE_DIR "."
@@ -80,6 +87,66 @@ std::uint64_t state_digest(const State& s) {
   f.array(s.contacts.rolling);
   f.bytes(s.cell.length.data(), sizeof(double) * 3);
   return f.h;
+}
+
+// Steps the scene: scene B (deform > 0) shortens z at the engineering rate RATE: L_z(t) =
+// L_z0 (1 - RATE t), so D_zz = dL_z/dt / L_z = -RATE L_z0 / L_z, set before each step from the
+// current length. One step_until call for all the steps (World::step_until).
+void advance(World& world, long steps, double deform, double lz0) {
+  const auto set_rate = [&](Cell& cell) {
+    if (deform > 0.0) cell.rate = Vec3(0.0, 0.0, -deform * lz0 / cell.length[2]);
+  };
+  set_rate(world.state().cell);
+  world.step_until(static_cast<std::uint64_t>(steps), [&](Cell& cell, const Clock&) {
+    set_rate(cell);
+    return false;
+  });
+}
+
+double median(std::vector<double> x) {
+  std::sort(x.begin(), x.end());
+  return x.size() % 2 ? x[x.size() / 2] : 0.5 * (x[x.size() / 2 - 1] + x[x.size() / 2]);
+}
+
+// --scaling: two worlds of the same scene, one on 1 thread and one on T, advanced alternately by
+// blocks of `steps` steps, `rounds` times. Each pair of blocks runs seconds apart, on the same
+// stretch of the trajectory (the two worlds stay bitwise equal), so the per-round ratios see the
+// machine in the same state; the median of them is the scaling figure.
+int run_scaling(const Model& model, const Packing& packing, long steps, int threads, int rounds, double deform,
+                bool json) {
+  if (threads < 2) usage_error("--scaling needs --threads T >= 2 (got " + std::to_string(threads) + ")");
+  World one(model, make_state(model, packing), ExecutorConfig{Backend::tbb, 1});
+  World many(model, make_state(model, packing), ExecutorConfig{Backend::tbb, threads});
+  const double lz0 = one.state().cell.length[2];
+  const double n = double(one.state().particles.size());
+  std::vector<double> rate_one, rate_many, ratio;
+  const auto timed = [&](World& w) {
+    const auto t0 = std::chrono::steady_clock::now();
+    advance(w, steps, deform, lz0);
+    return n * double(steps) / std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  };
+  for (int r = 0; r < rounds; ++r) {
+    rate_one.push_back(timed(one));
+    rate_many.push_back(timed(many));
+    ratio.push_back(rate_many.back() / rate_one.back());
+  }
+  const bool same = state_digest(one.state()) == state_digest(many.state());
+  if (json) {
+    std::printf("{\"particles\": %.0f, \"steps_per_round\": %ld, \"rounds\": %d, \"threads\": %d, \"deform\": %.9g, "
+                "\"median_one\": %.6g, \"median_many\": %.6g, \"median_ratio\": %.6g, \"ratios\": [",
+                n, steps, rounds, threads, deform, median(rate_one), median(rate_many), median(ratio));
+    for (std::size_t k = 0; k < ratio.size(); ++k) std::printf("%s%.6g", k ? ", " : "", ratio[k]);
+    std::printf("], \"digests_equal\": %s}\n", same ? "true" : "false");
+  } else {
+    std::printf("thread scaling: %.0f particles, %ld steps x %d rounds, 1 and %d threads alternating%s\n", n, steps,
+                rounds, threads, deform > 0.0 ? " (scene B)" : "");
+    std::printf("  1 thread    median %8.3f M particle-steps/s\n", median(rate_one) / 1e6);
+    std::printf("  %d threads   median %8.3f M particle-steps/s\n", threads, median(rate_many) / 1e6);
+    std::printf("  ratio       median of the rounds' ratios %.3f (", median(ratio));
+    for (std::size_t k = 0; k < ratio.size(); ++k) std::printf("%s%.3f", k ? ", " : "", ratio[k]);
+    std::printf(")\n  final states bitwise equal: %s\n", same ? "yes" : "NO");
+  }
+  return same ? 0 : 1;
 }
 
 // One variant of the benchmark model for --costs.
@@ -136,7 +203,7 @@ int main(int argc, char** argv) {
   long steps = 2000;
   int threads = 0;
   double deform = 0.0;
-  bool json = false, serial = false, costs = false;
+  bool json = false, serial = false, costs = false, scaling = false;
   int rounds = 3;
   long sort_interval = -1;
   Model model;
@@ -155,6 +222,7 @@ int main(int argc, char** argv) {
     else if (arg == "--serial") serial = true;
     else if (arg == "--json") json = true;
     else if (arg == "--costs") costs = true;
+    else if (arg == "--scaling") scaling = true;
     else if (arg == "--rounds") rounds = static_cast<int>(parse_number("--rounds", value(), 1, 1000));
     else if (arg == "--rolling") {
       const std::string_view v = value();
@@ -171,7 +239,8 @@ int main(int argc, char** argv) {
     } else if (arg == "--help" || arg == "-h") {
       std::printf("usage: dem-bench [--scene FILE] [--steps N] [--threads T] [--deform RATE] [--rolling none|epsd2|epsd|cdt]\n"
                   "                 [--tangential history|incremental] [--compat] [--sort STEPS] [--serial] [--json]\n"
-                  "       dem-bench --costs [--scene FILE] [--steps N] [--threads T] [--rounds R]\n");
+                  "       dem-bench --costs [--scene FILE] [--steps N] [--threads T] [--rounds R]\n"
+                  "       dem-bench --scaling [--scene FILE] [--steps N] [--threads T] [--rounds R] [--deform RATE] [--json]\n");
       return 0;
     } else {
       usage_error("unknown argument '" + std::string(arg) + "' (see --help)");
@@ -192,6 +261,10 @@ int main(int argc, char** argv) {
     usage_error(e.what());
   }
   if (costs) return run_costs(model, packing, steps, threads, rounds);
+  if (scaling) {
+    const int t = threads > 0 ? threads : static_cast<int>(std::thread::hardware_concurrency());
+    return run_scaling(model, packing, steps, t, rounds, deform, json);
+  }
   const ExecutorConfig exec{serial ? Backend::serial : Backend::tbb, threads};
   World world(model, make_state(model, packing), exec);
   const std::size_t n = world.state().particles.size();
@@ -202,16 +275,7 @@ int main(int argc, char** argv) {
 
   world.reset_timers();
   const auto t0 = std::chrono::steady_clock::now();
-  // Engineering rate: L_z(t) = L_z0 (1 - RATE t), so D_zz = dL_z/dt / L_z = -RATE L_z0 / L_z, set
-  // before each step from the current length.
-  const auto set_rate = [&](Cell& cell) {
-    if (deform > 0.0) cell.rate = Vec3(0.0, 0.0, -deform * lz0 / cell.length[2]);
-  };
-  set_rate(world.state().cell);
-  world.step_until(static_cast<std::uint64_t>(steps), [&](Cell& cell, const Clock&) {
-    set_rate(cell);
-    return false;
-  });
+  advance(world, steps, deform, lz0);
   const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 
   const Mat3 s1 = contact_stress(world.state(), world.executor());

@@ -1,6 +1,7 @@
 # apps.bench_digest: dem-bench on the shipped dense-20k scene (scene B: the deforming box, so the
 # list is rebuilt and contacts open and close) gives the same state digest with 1 and 2 TBB threads
-# and with the serial backend, and a different one after one more step (the digest sees the state).
+# and with the serial backend, and a different one after one more step (the digest sees the state);
+# --scaling reports its two worlds equal.
 function(bench_digest out)
   execute_process(COMMAND "${BENCH}" ${ARGN} --deform 0.9391 --json
                   RESULT_VARIABLE code OUTPUT_VARIABLE json ERROR_VARIABLE err)
@@ -20,4 +21,17 @@ if(NOT one STREQUAL two OR NOT one STREQUAL serial)
 endif()
 if(one STREQUAL later)
   message(FATAL_ERROR "state digest unchanged by one more step: it does not see the state")
+endif()
+
+# --scaling steps a 1-thread and a 2-thread world of scene B alternately (2 blocks of 20 steps):
+# it must report their final states bitwise equal, and exit 0.
+execute_process(COMMAND "${BENCH}" --scaling --steps 20 --rounds 2 --threads 2 --deform 0.9391 --json
+                RESULT_VARIABLE code OUTPUT_VARIABLE json ERROR_VARIABLE err)
+if(NOT code EQUAL 0)
+  message(FATAL_ERROR "dem-bench --scaling exited ${code}: ${json} ${err}")
+endif()
+string(JSON equal GET "${json}" digests_equal)
+string(JSON rounds LENGTH "${json}" ratios)
+if(NOT equal OR NOT rounds EQUAL 2)
+  message(FATAL_ERROR "dem-bench --scaling: digests_equal = ${equal}, ${rounds} ratios (expected true, 2): ${json}")
 endif()
