@@ -103,10 +103,11 @@ class Scratch {
   // (as LAMMPS/LIGGGHTS do in `run 0` setup), so setting up a scene does not advance it.
   bool setup = false;
   // The final half kick of a step and the first half kick of the next use the same forces, and
-  // nothing in between reads velocities. Within World::step(n), every step but the last leaves its
-  // final kick to the next integrate_initial, which applies both in one pass over the particles
-  // (the same two additions in the same order: bitwise the same as two passes). World sets
-  // `defer_final_kick` per step; integrate_final sets `kick_pending` instead of kicking.
+  // nothing in between reads velocities. Within one World::step_until call, integrate_final sets
+  // `kick_pending` instead of kicking, and the next integrate_initial applies both kicks in one
+  // pass over the particles (the same two additions in the same order: bitwise the same as two
+  // passes); World applies the last step's kick before returning. World sets `defer_final_kick`
+  // for the length of the call, where the graph allows it (World::defers_final_kick).
   bool defer_final_kick = false;
   bool kick_pending = false;
 
