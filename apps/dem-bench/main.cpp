@@ -187,11 +187,9 @@ int run_costs(const Model& base, const Packing& packing, long steps, int threads
   std::printf("  %-34s %12s %8s\n", "variant", "M p-steps/s", "ratio");
   double base_rate = 0.0;
   for (std::size_t v = 0; v < variants.size(); ++v) {
-    std::vector<double> x = rates[v];
-    std::sort(x.begin(), x.end());
-    const double median = x[x.size() / 2];
-    if (v == 0) base_rate = median;
-    std::printf("  %-34s %12.3f %8.3f\n", variants[v].name, median / 1e6, median / base_rate);
+    const double m = median(rates[v]);
+    if (v == 0) base_rate = m;
+    std::printf("  %-34s %12.3f %8.3f\n", variants[v].name, m / 1e6, m / base_rate);
   }
   return 0;
 }
