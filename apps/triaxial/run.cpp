@@ -81,6 +81,8 @@ struct Options {
   bool progress = false;
   std::uint64_t stop_after = 0;   // > 0: each job stops after this many steps of this process, with a
                                   // checkpoint, as a killed run would (to test --resume)
+  /// Whether a job that started this process at step0 stops (--stop-after) at step s.
+  bool stop_due(std::uint64_t s, std::uint64_t step0) const { return stop_after > 0 && s - step0 >= stop_after; }
 };
 
 // A job stopped on request (--stop-after) after writing its checkpoint.
@@ -403,16 +405,13 @@ bool Runner::prepare(double p0, Summary& summary) {
   const auto t0 = Clock::now();
   const std::uint64_t step0 = world.state().clock.step;
   Measures m;
-  const auto stop_after_due = [&](std::uint64_t s) {
-    return plan_.options.stop_after > 0 && s - step0 >= plan_.options.stop_after;
-  };
   for (;;) {
     // Steps until the body below has something to do: one call for many steps is bitwise the
     // same as one call per step, and faster (World::step_until).
     world.step_until(std::numeric_limits<std::uint64_t>::max(), [&](Cell&, const sandcell::Clock& clock) {
       const std::uint64_t s = clock.step;
       return s % plan_.config.output.series_interval == 0 || s % pc.check_interval == 0 ||
-             checkpoint_due(plan_.config.output, s, timer) || stop_after_due(s);
+             checkpoint_due(plan_.config.output, s, timer) || plan_.options.stop_due(s, step0);
     });
     const std::uint64_t s = world.state().clock.step;
     const bool series_due = s % plan_.config.output.series_interval == 0;
@@ -441,7 +440,7 @@ bool Runner::prepare(double p0, Summary& summary) {
       results->flush();
       save(ckpt, world.state(), {}, timer);
     }
-    if (stop_after_due(s)) {
+    if (plan_.options.stop_due(s, step0)) {
       results->flush();
       save(ckpt, world.state(), {}, timer);
       throw Interrupted(summary.name + ": stopped at step " + std::to_string(s) + " (--stop-after)");
@@ -583,9 +582,6 @@ void Runner::shear(const TestSpec& test, Summary& summary) {
   const auto finished = [&](std::uint64_t s, double eps1) {
     return test.path == ShearPath::strain ? s >= h.steps : eps1 >= max_strain;
   };
-  const auto stop_after_due = [&](std::uint64_t s) {
-    return plan_.options.stop_after > 0 && s - step0 >= plan_.options.stop_after;
-  };
   const auto progress_due = [&] {
     return plan_.options.progress && std::chrono::duration<double>(Clock::now() - last_progress).count() > 1.0;
   };
@@ -596,7 +592,7 @@ void Runner::shear(const TestSpec& test, Summary& summary) {
       const std::uint64_t s = clock.step;
       return finished(s, axial_strain(cell)) || s % o.series_interval == 0 ||
              (o.snapshot_interval > 0 && s % o.snapshot_interval == 0) || checkpoint_due(o, s, timer) ||
-             stop_after_due(s) || progress_due();
+             plan_.options.stop_due(s, step0) || progress_due();
     });
     State& st = world.state();
     const std::uint64_t s = st.clock.step;
@@ -620,7 +616,7 @@ void Runner::shear(const TestSpec& test, Summary& summary) {
       results->flush();
       save(ckpt, st, history.save(), timer);
     }
-    if (stop_after_due(s)) {
+    if (plan_.options.stop_due(s, step0)) {
       results->flush();
       save(ckpt, st, history.save(), timer);
       throw Interrupted(test.name + ": stopped at step " + std::to_string(s) + " (--stop-after)");
