@@ -14,14 +14,7 @@ rounds=${2:-5}
 erate=${3:-0}
 [[ "$steps" =~ ^[1-9][0-9]*$ ]] || { echo "STEPS = $steps: must be an integer >= 1" >&2; exit 2; }
 [[ "$rounds" =~ ^[1-9][0-9]*$ ]] || { echo "ROUNDS = $rounds: must be an integer >= 1" >&2; exit 2; }
-bench="$root/build/release/apps/dem-bench/dem-bench"
-scene="$root/apps/dem-bench/scenes/dense-20k.txt"
-command -v liggghts >/dev/null || { echo "liggghts not installed: apt-get install liggghts" >&2; exit 2; }
-[ -x "$bench" ] || { echo "build first: cmake --preset release && cmake --build --preset release" >&2; exit 2; }
-work=$(mktemp -d)
-trap 'rm -rf "$work"' EXIT
-python3 "$here/liggghts/packing2data.py" "$scene" "$work/dense-20k.data"
-cd "$work"
+source "$here/liggghts/setup.sh"
 deform=(); [ "$erate" != "0" ] && deform=(--deform "$erate")
 liggghts_rate() {  # ranks -> M particle-steps/s of the timed run (the second "Loop time")
   OMP_NUM_THREADS=1 mpirun --allow-run-as-root -np "$1" liggghts -in "$here/liggghts/bench.in" \
