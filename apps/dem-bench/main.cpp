@@ -40,7 +40,6 @@
 #include <cstdlib>
 #include <string>
 #include <string_view>
-#include <thread>
 
 #ifndef SANDCELL_BENCH_SCENE_DIR
 #define SANDCELL_BENCH_SCENE_DIR "."
@@ -114,9 +113,11 @@ double median(std::vector<double> x) {
 // machine in the same state; the median of them is the scaling figure.
 int run_scaling(const Model& model, const Packing& packing, long steps, int threads, int rounds, double deform,
                 bool json) {
+  // T = 0: all hardware threads, as the executor counts them (TBB's default concurrency).
+  World many(model, make_state(model, packing), ExecutorConfig{Backend::tbb, threads});
+  threads = many.executor().threads();
   if (threads < 2) usage_error("--scaling needs --threads T >= 2 (got " + std::to_string(threads) + ")");
   World one(model, make_state(model, packing), ExecutorConfig{Backend::tbb, 1});
-  World many(model, make_state(model, packing), ExecutorConfig{Backend::tbb, threads});
   const double lz0 = one.state().cell.length[2];
   const double n = double(one.state().particles.size());
   std::vector<double> rate_one, rate_many, ratio;
@@ -259,10 +260,7 @@ int main(int argc, char** argv) {
     usage_error(e.what());
   }
   if (costs) return run_costs(model, packing, steps, threads, rounds);
-  if (scaling) {
-    const int t = threads > 0 ? threads : static_cast<int>(std::thread::hardware_concurrency());
-    return run_scaling(model, packing, steps, t, rounds, deform, json);
-  }
+  if (scaling) return run_scaling(model, packing, steps, threads, rounds, deform, json);
   const ExecutorConfig exec{serial ? Backend::serial : Backend::tbb, threads};
   World world(model, make_state(model, packing), exec);
   const std::size_t n = world.state().particles.size();

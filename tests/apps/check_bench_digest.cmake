@@ -2,12 +2,17 @@
 # list is rebuilt and contacts open and close) gives the same state digest with 1 and 2 TBB threads
 # and with the serial backend, and a different one after one more step (the digest sees the state);
 # --scaling reports its two worlds equal.
-function(bench_digest out)
+# dem-bench ARGN on scene B: its JSON report (fatal if it exits non-zero).
+function(bench_json out)
   execute_process(COMMAND "${BENCH}" ${ARGN} --deform 0.9391 --json
                   RESULT_VARIABLE code OUTPUT_VARIABLE json ERROR_VARIABLE err)
   if(NOT code EQUAL 0)
-    message(FATAL_ERROR "dem-bench ${ARGN} exited ${code}: ${err}")
+    message(FATAL_ERROR "dem-bench ${ARGN} exited ${code}: ${json} ${err}")
   endif()
+  set(${out} "${json}" PARENT_SCOPE)
+endfunction()
+function(bench_digest out)
+  bench_json(json ${ARGN})
   string(JSON digest GET "${json}" digest)
   set(${out} "${digest}" PARENT_SCOPE)
 endfunction()
@@ -25,11 +30,7 @@ endif()
 
 # --scaling steps a 1-thread and a 2-thread world of scene B alternately (2 blocks of 20 steps):
 # it must report their final states bitwise equal, and exit 0.
-execute_process(COMMAND "${BENCH}" --scaling --steps 20 --rounds 2 --threads 2 --deform 0.9391 --json
-                RESULT_VARIABLE code OUTPUT_VARIABLE json ERROR_VARIABLE err)
-if(NOT code EQUAL 0)
-  message(FATAL_ERROR "dem-bench --scaling exited ${code}: ${json} ${err}")
-endif()
+bench_json(json --scaling --steps 20 --rounds 2 --threads 2)
 string(JSON equal GET "${json}" digests_equal)
 string(JSON rounds LENGTH "${json}" ratios)
 if(NOT equal OR NOT rounds EQUAL 2)
