@@ -36,3 +36,9 @@ string(JSON rounds LENGTH "${json}" ratios)
 if(NOT equal OR NOT rounds EQUAL 2)
   message(FATAL_ERROR "dem-bench --scaling: digests_equal = ${equal}, ${rounds} ratios (expected true, 2): ${json}")
 endif()
+# The machine's streaming reference of the same rounds: a ratio of two measured rates, so positive
+# and finite on any machine (its value is the machine's; it is not asserted).
+string(JSON stream GET "${json}" stream_median_ratio)
+if(NOT stream GREATER 0 OR stream MATCHES "[a-z]")
+  message(FATAL_ERROR "dem-bench --scaling: stream_median_ratio = ${stream} (expected a positive number): ${json}")
+endif()
