@@ -39,6 +39,6 @@ endif()
 # The machine's streaming reference of the same rounds: a ratio of two measured rates, so positive
 # and finite on any machine (its value is the machine's; it is not asserted).
 string(JSON stream GET "${json}" stream_median_ratio)
-if(NOT stream GREATER 0 OR stream MATCHES "[a-z]")
+if(NOT stream GREATER 0 OR stream MATCHES "nan|inf")
   message(FATAL_ERROR "dem-bench --scaling: stream_median_ratio = ${stream} (expected a positive number): ${json}")
 endif()
