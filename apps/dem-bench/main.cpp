@@ -135,9 +135,9 @@ double stream_rate(Executor& exec, std::vector<double>& x, std::vector<double>& 
 //   machine limits every pass that streams at that moment; when it is near T and the engine's is
 //   lower, the gap is the engine's;
 // - T more 1-thread worlds of the same scene, stepped at once from T threads of their own (the
-//   same workload shared nothing: a sweep of runs launched as separate jobs). Their throughput
-//   over the 1-thread world's is the ceiling of the T-thread world on this machine at that
-//   moment: it pays the machine's contention between busy cores (shared cache, memory, power,
+//   same workload sharing nothing: a sweep of runs launched as separate jobs). Their throughput
+//   over the 1-thread world's is the practical ceiling of the T-thread world on this machine at
+//   that moment: it pays the machine's contention between busy cores (shared cache, memory, power,
 //   other tenants) but nothing of the engine's (synchronization, imbalance, data written by one
 //   core and read by another). The two ratios' difference is what sharing one world costs.
 //   Each of these worlds steps the same trajectory as the others, so they end bitwise equal to
