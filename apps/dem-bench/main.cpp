@@ -152,22 +152,24 @@ int run_scaling(const Model& model, const Packing& packing, long steps, int thre
   const double lz0 = one.state().cell.length[2];
   const double n = double(one.state().particles.size());
   std::vector<double> rate_one, rate_many, ratio;
-  const auto timed = [&](World& w) {
+  // Particle-steps per second of `worlds` worlds advanced by one block in `run`.
+  const auto rate = [&](std::size_t worlds, auto&& run) {
     const auto t0 = std::chrono::steady_clock::now();
-    advance(w, steps, deform, lz0);
-    return n * double(steps) / std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    run();
+    return double(worlds) * n * double(steps) /
+           std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   };
+  const auto timed = [&](World& w) { return rate(1, [&] { advance(w, steps, deform, lz0); }); };
   std::vector<std::unique_ptr<World>> jobs;
   for (int t = 0; t < threads; ++t)
     jobs.push_back(std::make_unique<World>(model, make_state(model, packing), ExecutorConfig{Backend::tbb, 1}));
   std::vector<double> jobs_ratio;
   const auto timed_jobs = [&] {
-    const auto t0 = std::chrono::steady_clock::now();
-    std::vector<std::thread> run;
-    for (auto& w : jobs) run.emplace_back([&, world = w.get()] { advance(*world, steps, deform, lz0); });
-    for (auto& t : run) t.join();
-    return double(jobs.size()) * n * double(steps) /
-           std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    return rate(jobs.size(), [&] {
+      std::vector<std::thread> run;
+      for (auto& w : jobs) run.emplace_back([&, world = w.get()] { advance(*world, steps, deform, lz0); });
+      for (auto& t : run) t.join();
+    });
   };
   std::vector<double> sx(std::size_t{1} << 19, 1.0), sy(std::size_t{1} << 19, 0.0), stream_ratio;
   constexpr int k_stream_passes = 400;  // ~0.1 s per executor per round at ~40 GB/s
