@@ -142,6 +142,8 @@ double stream_rate(Executor& exec, std::vector<double>& x, std::vector<double>& 
 //   core and read by another). The two ratios' difference is what sharing one world costs.
 //   Each of these worlds steps the same trajectory as the others, so they end bitwise equal to
 //   the 1-thread world (checked).
+// It also prints the engine's per-system timers of the 1- and T-thread worlds summed over the
+// rounds: which pass loses what, measured in the same rounds.
 int run_scaling(const Model& model, const Packing& packing, long steps, int threads, int rounds, double deform,
                 bool json) {
   // T = 0: all hardware threads, as the executor counts them (TBB's default concurrency).
@@ -189,8 +191,12 @@ int run_scaling(const Model& model, const Packing& packing, long steps, int thre
                 "\"median_one\": %.6g, \"median_many\": %.6g, \"median_ratio\": %.6g, \"ratios\": [",
                 n, steps, rounds, threads, deform, median(rate_one), median(rate_many), median(ratio));
     for (std::size_t k = 0; k < ratio.size(); ++k) std::printf("%s%.6g", k ? ", " : "", ratio[k]);
-    std::printf("], \"jobs_median_ratio\": %.6g, \"stream_median_ratio\": %.6g, \"digests_equal\": %s}\n",
-                median(jobs_ratio), median(stream_ratio), same ? "true" : "false");
+    std::printf("], \"jobs_median_ratio\": %.6g, \"stream_median_ratio\": %.6g, \"systems\": {",
+                median(jobs_ratio), median(stream_ratio));
+    for (std::size_t k = 0; k < one.graph().size(); ++k)
+      std::printf("%s\"%s\": [%.6f, %.6f]", k ? ", " : "", one.graph().system(k).name.c_str(), one.graph().timers()[k],
+                  many.graph().timers()[k]);
+    std::printf("}, \"digests_equal\": %s}\n", same ? "true" : "false");
   } else {
     std::printf("thread scaling: %.0f particles, %ld steps x %d rounds, 1 and %d threads alternating%s\n", n, steps,
                 rounds, threads, deform > 0.0 ? " (scene B)" : "");
@@ -202,6 +208,13 @@ int run_scaling(const Model& model, const Packing& packing, long steps, int thre
                 threads, median(jobs_ratio));
     std::printf("  machine     y += a x over 2 x 4 MiB, 1 -> %d threads in the same rounds: median ratio %.3f\n",
                 threads, median(stream_ratio));
+    std::printf("  per system  seconds over all rounds, 1 -> %d threads (ratio):\n", threads);
+    for (std::size_t k = 0; k < one.graph().size(); ++k) {
+      const double a = one.graph().timers()[k], b = many.graph().timers()[k];
+      std::printf("    %-18s %8.3f -> %8.3f s", one.graph().system(k).name.c_str(), a, b);
+      if (b > 0.0 && a >= 0.01) std::printf("  (%.2f)", a / b);
+      std::printf("\n");
+    }
     std::printf("  final states bitwise equal (all %d worlds): %s\n", threads + 2, same ? "yes" : "NO");
   }
   return same ? 0 : 1;

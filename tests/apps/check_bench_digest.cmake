@@ -45,3 +45,12 @@ foreach(key jobs_median_ratio stream_median_ratio)
     message(FATAL_ERROR "dem-bench --scaling: ${key} = ${value} (expected a positive number): ${json}")
   endif()
 endforeach()
+# The per-system seconds of both worlds over the same rounds: every system of the step has a pair,
+# and the contact pass, which ran in every step of both, took time in both.
+string(JSON systems LENGTH "${json}" systems)
+foreach(world 0 1)
+  string(JSON seconds GET "${json}" systems hertz_mindlin ${world})
+  if(systems LESS 4 OR NOT seconds GREATER 0)
+    message(FATAL_ERROR "dem-bench --scaling: ${systems} systems, hertz_mindlin[${world}] = ${seconds} s: ${json}")
+  endif()
+endforeach()
