@@ -11,14 +11,16 @@ namespace {
 // 8: 0.165-0.211, 16: 0.190-0.208; the 1-thread world's 0.30-0.34 s with every distance.
 constexpr std::size_t k_write_ahead = 8;
 
-// Half kick of linear and angular velocity over [b, e).
+// Half kick of linear and angular velocity over [b, e). Exclusive: whether the CPU has PREFETCHW
+// (engine/prefetch.hpp).
+template <bool Exclusive>
 void half_kick(double half_dt, const Vec3* __restrict f, const Vec3* __restrict t, const double* __restrict m,
                const double* __restrict inv_i, Vec3* __restrict v, Vec3* __restrict w, std::size_t b,
                std::size_t e) {
   for (std::size_t k = b; k < e; ++k) {
     if (k + k_write_ahead < e) {
-      prefetch_for_write(&v[k + k_write_ahead]);
-      prefetch_for_write(&w[k + k_write_ahead]);
+      prefetch_for_write<Exclusive>(&v[k + k_write_ahead]);
+      prefetch_for_write<Exclusive>(&w[k + k_write_ahead]);
     }
     v[k] += f[k] * (half_dt / m[k]);
     w[k] += t[k] * (half_dt * inv_i[k]);
@@ -27,15 +29,16 @@ void half_kick(double half_dt, const Vec3* __restrict f, const Vec3* __restrict 
 
 // The last step's deferred final half kick, then this step's first half kick and the drift, in one
 // pass over [b, e). Each kick adds the same increment as half_kick, in the same order.
+template <bool Exclusive>
 void two_kicks_drift(double dt, const Vec3& rate, const Vec3* __restrict f, const Vec3* __restrict t,
                      const double* __restrict m, const double* __restrict inv_i, Vec3* __restrict x,
                      Vec3* __restrict v, Vec3* __restrict w, std::size_t b, std::size_t e) {
   const double half_dt = 0.5 * dt;
   for (std::size_t k = b; k < e; ++k) {
     if (k + k_write_ahead < e) {
-      prefetch_for_write(&x[k + k_write_ahead]);
-      prefetch_for_write(&v[k + k_write_ahead]);
-      prefetch_for_write(&w[k + k_write_ahead]);
+      prefetch_for_write<Exclusive>(&x[k + k_write_ahead]);
+      prefetch_for_write<Exclusive>(&v[k + k_write_ahead]);
+      prefetch_for_write<Exclusive>(&w[k + k_write_ahead]);
     }
     const Vec3 dv = f[k] * (half_dt / m[k]);
     const Vec3 dw = t[k] * (half_dt * inv_i[k]);
@@ -72,12 +75,16 @@ void IntegrateInitial::run(const Model& model, State& state, Scratch& scratch, E
   Vec3* w = omega.data();
   if (scratch.kick_pending) {  // the last step's final kick was left to this pass (scratch.hpp)
     scratch.kick_pending = false;
+    const bool exclusive = cpu_has_prefetchw();
     exec.parallel_for(position.size(), k_particle_grain, [&](std::size_t b, std::size_t e) {
-      two_kicks_drift(dt, rate, f, t, m, inv_i, x, v, w, b, e);
+      if (exclusive) two_kicks_drift<true>(dt, rate, f, t, m, inv_i, x, v, w, b, e);
+      else two_kicks_drift<false>(dt, rate, f, t, m, inv_i, x, v, w, b, e);
     });
   } else {
+    const bool exclusive = cpu_has_prefetchw();
     exec.parallel_for(position.size(), k_particle_grain, [&](std::size_t b, std::size_t e) {
-      half_kick(0.5 * dt, f, t, m, inv_i, v, w, b, e);
+      if (exclusive) half_kick<true>(0.5 * dt, f, t, m, inv_i, v, w, b, e);
+      else half_kick<false>(0.5 * dt, f, t, m, inv_i, v, w, b, e);
       for (std::size_t k = b; k < e; ++k) x[k] += (v[k] + rate.cwiseProduct(x[k])) * dt;
     });
   }
@@ -97,8 +104,11 @@ void IntegrateFinal::run(const Model& model, State& state, Scratch& scratch, Exe
   auto& velocity = state.write<Component::particle_velocity>();
   Vec3* v = velocity.data();
   Vec3* w = state.write<Component::particle_angular_velocity>().data();
-  exec.parallel_for(velocity.size(), k_particle_grain,
-                    [&](std::size_t b, std::size_t e) { half_kick(0.5 * dt, f, t, m, inv_i, v, w, b, e); });
+  const bool exclusive = cpu_has_prefetchw();
+  exec.parallel_for(velocity.size(), k_particle_grain, [&](std::size_t b, std::size_t e) {
+    if (exclusive) half_kick<true>(0.5 * dt, f, t, m, inv_i, v, w, b, e);
+    else half_kick<false>(0.5 * dt, f, t, m, inv_i, v, w, b, e);
+  });
 }
 
 }  // namespace sandcell

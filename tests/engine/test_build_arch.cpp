@@ -1,9 +1,11 @@
 // The instruction-set check (engine/build_arch.hpp): which features a build needs that a CPU
 // lacks, and what the running build says of itself.
 #include "engine/build_arch.hpp"
+#include "engine/prefetch.hpp"
 
 #include <doctest/doctest.h>
 
+#include <fstream>
 #include <string>
 #include <vector>
 
@@ -40,4 +42,25 @@ TEST_CASE("the running build says which it is, and what it needs matches that") 
     CHECK((required >> 6 & 1u) == 1u);
     CHECK((required >> 10 & 1u) == 0u);
   }
+}
+
+TEST_CASE("cpu_has_prefetchw agrees with the kernel's view of the CPU") {
+  // Linux lists the CPUID bit of PREFETCHW (0x80000001 ECX bit 8) as the flag "3dnowprefetch" in
+  // /proc/cpuinfo: an independent reading of the same bit. Off Linux or off x86-64 there is no
+  // such line, and the query must say false off x86-64.
+  std::ifstream in("/proc/cpuinfo");
+  std::string line;
+  bool listed = false, have_flags = false;
+  while (std::getline(in, line))
+    if (line.rfind("flags", 0) == 0) {
+      have_flags = true;
+      listed = (line + " ").find(" 3dnowprefetch ") != std::string::npos;
+      break;
+    }
+#if defined(__x86_64__)
+  if (have_flags) CHECK(cpu_has_prefetchw() == listed);
+#else
+  static_cast<void>(listed);
+  CHECK_FALSE(cpu_has_prefetchw());
+#endif
 }
