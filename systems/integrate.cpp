@@ -5,23 +5,17 @@
 namespace sandcell {
 
 namespace {
-// Particles ahead at which the passes ask for the lines they will write (engine/prefetch.hpp).
+// Particles ahead at which two_kicks_drift asks for the lines it will write (engine/prefetch.hpp).
 // dense-20k, 2 threads, `dem-bench --scaling --steps 1000 --rounds 3 --threads 2` (integrate_initial
 // of the 2-thread world per 3000 steps, 3-5 runs each): none 0.231-0.311 s, 4: 0.206-0.236,
 // 8: 0.165-0.211, 16: 0.190-0.208; the 1-thread world's 0.30-0.34 s with every distance.
 constexpr std::size_t k_write_ahead = 8;
 
-// Half kick of linear and angular velocity over [b, e). Exclusive: whether the CPU has PREFETCHW
-// (engine/prefetch.hpp).
-template <bool Exclusive>
+// Half kick of linear and angular velocity over [b, e).
 void half_kick(double half_dt, const Vec3* __restrict f, const Vec3* __restrict t, const double* __restrict m,
                const double* __restrict inv_i, Vec3* __restrict v, Vec3* __restrict w, std::size_t b,
                std::size_t e) {
   for (std::size_t k = b; k < e; ++k) {
-    if (k + k_write_ahead < e) {
-      prefetch_for_write<Exclusive>(&v[k + k_write_ahead]);
-      prefetch_for_write<Exclusive>(&w[k + k_write_ahead]);
-    }
     v[k] += f[k] * (half_dt / m[k]);
     w[k] += t[k] * (half_dt * inv_i[k]);
   }
@@ -29,6 +23,9 @@ void half_kick(double half_dt, const Vec3* __restrict f, const Vec3* __restrict 
 
 // The last step's deferred final half kick, then this step's first half kick and the drift, in one
 // pass over [b, e). Each kick adds the same increment as half_kick, in the same order.
+// Exclusive: whether the CPU has PREFETCHW (engine/prefetch.hpp). This is the pass of every step
+// of World::step_until but its first; half_kick's two passes per call (the first step's kick, the
+// closing kick) go without the prefetch.
 template <bool Exclusive>
 void two_kicks_drift(double dt, const Vec3& rate, const Vec3* __restrict f, const Vec3* __restrict t,
                      const double* __restrict m, const double* __restrict inv_i, Vec3* __restrict x,
@@ -81,10 +78,8 @@ void IntegrateInitial::run(const Model& model, State& state, Scratch& scratch, E
       else two_kicks_drift<false>(dt, rate, f, t, m, inv_i, x, v, w, b, e);
     });
   } else {
-    const bool exclusive = cpu_has_prefetchw();
     exec.parallel_for(position.size(), k_particle_grain, [&](std::size_t b, std::size_t e) {
-      if (exclusive) half_kick<true>(0.5 * dt, f, t, m, inv_i, v, w, b, e);
-      else half_kick<false>(0.5 * dt, f, t, m, inv_i, v, w, b, e);
+      half_kick(0.5 * dt, f, t, m, inv_i, v, w, b, e);
       for (std::size_t k = b; k < e; ++k) x[k] += (v[k] + rate.cwiseProduct(x[k])) * dt;
     });
   }
@@ -104,11 +99,8 @@ void IntegrateFinal::run(const Model& model, State& state, Scratch& scratch, Exe
   auto& velocity = state.write<Component::particle_velocity>();
   Vec3* v = velocity.data();
   Vec3* w = state.write<Component::particle_angular_velocity>().data();
-  const bool exclusive = cpu_has_prefetchw();
-  exec.parallel_for(velocity.size(), k_particle_grain, [&](std::size_t b, std::size_t e) {
-    if (exclusive) half_kick<true>(0.5 * dt, f, t, m, inv_i, v, w, b, e);
-    else half_kick<false>(0.5 * dt, f, t, m, inv_i, v, w, b, e);
-  });
+  exec.parallel_for(velocity.size(), k_particle_grain,
+                    [&](std::size_t b, std::size_t e) { half_kick(0.5 * dt, f, t, m, inv_i, v, w, b, e); });
 }
 
 }  // namespace sandcell
