@@ -70,6 +70,11 @@ struct ServoSettings {
   Vec3 strain_rate = Vec3::Zero();  // 1/s, compression positive, for strain-controlled axes
   double ramp_time = 0.0;           // s, strain-controlled rates rise linearly from 0 at clock time 0
                                     // to strain_rate at ramp_time (0: the full rate from the start)
+  double inertial_number = 0.0;     // -, > 0: strain-controlled rates are strain_rate[k] I sqrt(p/rho) / d50
+                                    // at each servo update, p the measured mean stress (strain_rate then
+                                    // gives only sign and proportions); 0: strain_rate as given
+  double d50 = 0.0;                 // m, median diameter, for inertial_number
+  double density = 0.0;             // kg/m^3, solid density, for inertial_number
   Vec3 target = Vec3::Zero();       // Pa, per-axis targets of the `fixed` path
   double p = 0.0;                   // Pa, mean stress of the isotropic and constant-p paths
   double b = 0.0;                   // -, intermediate principal stress ratio, in [0, 1]

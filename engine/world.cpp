@@ -47,6 +47,13 @@ void validate(const ServoSettings& servo) {
   for (int k = 0; k < 3; ++k)
     if (!std::isfinite(servo.strain_rate[k]))
       fail("strain_rate[" + std::to_string(k) + "]", servo.strain_rate[k], "must be finite");
+  if (!(servo.inertial_number >= 0.0) || !std::isfinite(servo.inertial_number))
+    fail("inertial_number", servo.inertial_number, "must be a finite value >= 0 (0: strain_rate as given)");
+  if (servo.inertial_number > 0.0) {
+    if (!(servo.d50 > 0.0) || !std::isfinite(servo.d50)) fail("d50", servo.d50, "must be > 0 m with inertial_number > 0");
+    if (!(servo.density > 0.0) || !std::isfinite(servo.density))
+      fail("density", servo.density, "must be > 0 kg/m^3 with inertial_number > 0");
+  }
   const bool any_stress = servo.control[0] == AxisControl::stress || servo.control[1] == AxisControl::stress ||
                           servo.control[2] == AxisControl::stress;
   if (!any_stress) return;

@@ -64,23 +64,23 @@ StressInvariants invariants(const Mat3& stress) {
   return r;
 }
 
-double median_diameter(const Particles& particles) {
-  const std::size_t n = particles.size();
-  if (n == 0) return 0.0;
-  std::vector<std::size_t> order(n);
-  for (std::size_t k = 0; k < n; ++k) order[k] = k;
-  std::sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) {
-    return particles.radius[a] < particles.radius[b] || (particles.radius[a] == particles.radius[b] && a < b);
-  });
+double median_diameter(std::span<const double> radius) {
+  if (radius.empty()) return 0.0;
+  // Summed in ascending order of radius, so any order of the input (a spatial sort, a file) gives
+  // the same bits.
+  std::vector<double> r(radius.begin(), radius.end());
+  std::sort(r.begin(), r.end());
   double total = 0.0;
-  for (std::size_t k = 0; k < n; ++k) total += particles.radius[k] * particles.radius[k] * particles.radius[k];
+  for (double x : r) total += x * x * x;
   double passing = 0.0;
-  for (std::size_t k : order) {
-    passing += particles.radius[k] * particles.radius[k] * particles.radius[k];
-    if (passing >= 0.5 * total) return 2.0 * particles.radius[k];
+  for (double x : r) {
+    passing += x * x * x;
+    if (passing >= 0.5 * total) return 2.0 * x;
   }
-  return 2.0 * particles.radius[order.back()];
+  return 2.0 * r.back();
 }
+
+double median_diameter(const Particles& particles) { return median_diameter(particles.radius); }
 
 Measures measure(const Model& model, const State& state, Executor& exec, const MeasureOptions& options) {
   Measures m;
@@ -212,6 +212,7 @@ Measures measure(const Model& model, const State& state, Executor& exec, const M
     // gamma_dot = eps_dot_1 - eps_dot_3 of the principal strain rates: largest minus smallest.
     const double shear_rate = m.strain_rate.maxCoeff() - m.strain_rate.minCoeff();
     m.inertial_number = shear_rate * options.d50 * std::sqrt(options.density / m.inv.p);
+    m.inertial_number_axial = std::abs(m.strain_rate[0]) * options.d50 * std::sqrt(options.density / m.inv.p);
   }
   return m;
 }

@@ -13,6 +13,7 @@
 #include "engine/system.hpp"
 
 #include <cstddef>
+#include <span>
 
 namespace sandcell {
 
@@ -67,6 +68,8 @@ struct Measures {
                                        // tangential |F_t^el|^2 / (2 k_t), rolling |M|^2 / (2 k_r)
   double max_overlap_ratio = 0.0;      // -, largest delta / min(R_i, R_j) over touching contacts
   double inertial_number = 0.0;        // -, (eps_dot_1 - eps_dot_3) d50 sqrt(rho / p)
+  double inertial_number_axial = 0.0;  // -, |eps_dot_1| d50 sqrt(rho / p): axis 1 alone, the form a set
+                                       // inertial number (ServoSettings::inertial_number) controls
 };
 
 struct MeasureOptions {
@@ -78,7 +81,8 @@ struct MeasureOptions {
 /// Every measure of DESIGN 3.5 on the current state (forces as of the last step). Deterministic.
 Measures measure(const Model& model, const State& state, Executor& exec, const MeasureOptions& options = {});
 
-/// Mass-weighted median diameter (50 % passing by mass), m.
+/// Mass-weighted median diameter (50 % passing by mass), m; the same bits for any order of the spheres.
 double median_diameter(const Particles& particles);
+double median_diameter(std::span<const double> radius);
 
 }  // namespace sandcell

@@ -42,11 +42,16 @@ double stress_scale(const ServoSettings& servo) {
 Vec3 servo_strain_rates(const ServoSettings& servo, const Vec3& sigma, Vec3* integral, double interval, double time) {
   const Vec3 target = path_targets(servo, sigma[0]);
   const double floor = 1e-3 * stress_scale(servo);
+  // At a set inertial number the strain-controlled rates follow the measured mean stress:
+  // |eps_dot| d50 sqrt(rho / p) = I, p floored like the errors' normalization.
+  const double scale = servo.inertial_number > 0.0
+                           ? servo.inertial_number * std::sqrt(std::max(sigma.mean(), floor) / servo.density) / servo.d50
+                           : 1.0;
   Vec3 rate;
   for (int k = 0; k < 3; ++k) {
     if (servo.control[k] == AxisControl::strain) {
-      rate[k] = servo.ramp_time > 0.0 && time < servo.ramp_time ? servo.strain_rate[k] * (time / servo.ramp_time)
-                                                                 : servo.strain_rate[k];
+      const double full = servo.strain_rate[k] * scale;
+      rate[k] = servo.ramp_time > 0.0 && time < servo.ramp_time ? full * (time / servo.ramp_time) : full;
       continue;
     }
     const double error = (target[k] - sigma[k]) / std::max(std::abs(target[k]), floor);

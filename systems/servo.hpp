@@ -29,7 +29,8 @@ Vec3 path_targets(const ServoSettings& servo, double sigma1);
 /// eps_dot_k = clamp(g (err_k + I_k / T_i), +-max_rate), err_k = (sigma*_k - sigma_k)/|sigma*_k|.
 /// With `integral` (the cell's servo_integral) and servo.integral_time > 0, I_k advances by
 /// err_k * interval (s) first, unless the output sits at the cap (anti-windup); otherwise a P law.
-/// Strain-controlled axes get servo.strain_rate, times time / servo.ramp_time while time (s, the
+/// Strain-controlled axes get servo.strain_rate (times I sqrt(p/rho) / d50 with p the mean of
+/// `sigma` when servo.inertial_number = I > 0), times time / servo.ramp_time while time (s, the
 /// clock's) is below a nonzero ramp_time.
 Vec3 servo_strain_rates(const ServoSettings& servo, const Vec3& sigma, Vec3* integral = nullptr,
                         double interval = 0.0, double time = 0.0);

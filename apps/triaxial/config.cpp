@@ -313,6 +313,7 @@ Config parse_config(const std::string& text, const std::string& source) {
     s.number("unbalanced", p.unbalanced, 1e-12, 1.0, "must be in (0, 1]");
     s.integer("check_interval", p.check_interval, 1, 1'000'000'000, "must be an integer >= 1 step");
     s.integer("max_steps", p.max_steps, 1, UINT64_MAX, "must be an integer >= 1 step");
+    s.boolean("chain", p.chain);
     s.check_unknown();
   }
   std::vector<std::string> path_names = {"constant_p"};
@@ -320,10 +321,13 @@ Config parse_config(const std::string& text, const std::string& source) {
     Section s(table("shear"), "shear", source);
     ShearConfig& h = c.shear;
     s.positive("strain_rate", h.strain_rate, "1/s");
+    // Above I ~ 0.1 dense granular flow is inertial (GDR MiDi 2004): no element test.
+    s.number("inertial_number", h.inertial_number, std::nextafter(0.0, 1.0), 0.1,
+             "must be in (0, 0.1] (eps_dot_1 d50 sqrt(rho/p); quasi-static tests: <= 3e-3)");
     s.number("ramp_strain", h.ramp_strain, 0.0, 1.0, "must be in [0, 1] (axial strain of the rate ramp; 0: none)");
     s.number("gain", h.gain, 0.0, 1e9, "must be >= 0 1/s (0: derived)");
     s.number("integral_time", h.integral_time, 0.0, 1e9, "must be >= 0 s (0: derived)");
-    s.number("max_rate", h.max_rate, 0.0, 1e9, "must be >= 0 1/s (0: 10 x strain_rate)");
+    s.number("max_rate", h.max_rate, 0.0, 1e9, "must be >= 0 1/s (0: 10 x the axial rate at p0)");
     s.integer("servo_interval", h.servo_interval, 1, 1'000'000, "must be an integer in [1, 1e6] steps");
     s.number("max_axial_strain", h.max_axial_strain, 1e-9, 2.0, "must be in (0, 2] (logarithmic strain)");
     s.boolean("stop_at_critical", h.stop_at_critical);
@@ -404,7 +408,14 @@ Config parse_config(const std::string& text, const std::string& source) {
     s.boolean("plot", o.plot);
     s.check_unknown();
   }
-  if (c.shear.max_rate == 0.0) c.shear.max_rate = 10.0 * c.shear.strain_rate;
+  bool stress_path = false;
+  for (const TestSpec& t : c.tests) stress_path = stress_path || t.path != ShearPath::strain;
+  if (c.shear.strain_rate > 0.0 && c.shear.inertial_number > 0.0)
+    throw ConfigError(source + ": shear.strain_rate = " + num(c.shear.strain_rate) + " and shear.inertial_number = " +
+                      num(c.shear.inertial_number) + ": give exactly one of the two (the axial rate, or the inertial number it follows)");
+  if (stress_path && !(c.shear.strain_rate > 0.0) && !(c.shear.inertial_number > 0.0))
+    throw ConfigError(source + ": shear.strain_rate and shear.inertial_number: neither is given; the stress paths need "
+                      "exactly one (e.g. strain_rate = 1.0 in 1/s, or inertial_number = 2e-3)");
   for (const TestSpec& t : c.tests) {
     if (t.path == ShearPath::strain && c.shear.steps == 0)
       throw ConfigError(source + ": shear.steps = 0: path \"strain\" needs a number of steps >= 1");

@@ -33,12 +33,15 @@ struct PrepareConfig {
   double unbalanced = 0.01;       // -, unbalanced force ratio
   std::uint64_t check_interval = 1000;  // steps between convergence checks
   std::uint64_t max_steps = 5'000'000;  // give up (error) after this many steps
+  bool chain = false;             // each higher p0 starts from the next lower p0's sample (false: each from the cloud)
 };
 
 enum class ShearPath { constant_p, constant_sigma3, strain };
 
 struct ShearConfig {
-  double strain_rate = 1.0;       // 1/s, axial (axis 1) compression rate of the stress paths
+  double strain_rate = 0.0;       // 1/s, axial (axis 1) compression rate of the stress paths (0: not given)
+  double inertial_number = 0.0;   // -, instead of strain_rate: the axial rate follows the measured p so that
+                                  // eps_dot_1 d50 sqrt(rho / p) = inertial_number (0: not given)
   double ramp_strain = 0.0;       // -, axial strain over which the rate rises linearly from 0 (0: none)
   double gain = 0.0;              // 1/s, lateral servo gain (0: derived, see README)
   double integral_time = 0.0;     // s, integral time of the lateral servo (0: derived, see README)

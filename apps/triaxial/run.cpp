@@ -79,6 +79,7 @@ struct Options {
   bool overwrite = false;
   double max_axial_strain = 0.0;  // > 0: overrides shear.max_axial_strain (short runs, CI)
   bool progress = false;
+  bool prepare_only = false;      // run the preparations, no test
   std::uint64_t stop_after = 0;   // > 0: each job stops after this many steps of this process, with a
                                   // checkpoint, as a killed run would (to test --resume)
   /// Whether a job that started this process at step0 stops (--stop-after) at step s.
@@ -99,9 +100,20 @@ struct Plan {
   bool from_file = false;
   double r_min = 0.0, r_max = 0.0;
   double servo_time = 0.0;   // s, the servo's time unit: max(dt, 0.2 Rayleigh time), see derived_gain
+  double d50 = 0.0;          // m, mass-weighted median diameter of the sample (the inertial number's)
   Model base;                // dt, material, contact settings of the shear stage
-  std::vector<double> p0;    // distinct preparation stresses, in config order
-  int job_threads = 1;
+  std::vector<double> p0;    // distinct preparation stresses, in config order (ascending with prepare.chain)
+  /// The p0 whose sample the preparation for p0 starts from (prepare.chain: the next lower p0), or 0
+  /// when it starts from the cloud.
+  double chained_from(double p0) const {
+    if (!config.prepare.chain) return 0.0;
+    double from = 0.0;
+    for (double q : this->p0)
+      if (q < p0) from = std::max(from, q);
+    return from;
+  }
+  int job_threads = 1;       // threads of one test (the budget split between `parallel` tests)
+  int prepare_threads = 1;   // threads of one preparation (all of them when chained ones run one by one)
 };
 
 std::string p0_tag(double p0) { return "p0_" + num(p0 / 1e3, "%g") + "kPa"; }
@@ -164,7 +176,8 @@ void append_row(ResultsFile& results, const State& state, const Measures& m, dou
   results.append("elastic_energy", m.elastic_energy, "J");
   results.append("max_overlap_ratio", m.max_overlap_ratio, "- (largest overlap / smaller radius)");
   results.append("unbalanced_force_ratio", m.unbalanced, "-");
-  results.append("inertial_number", m.inertial_number, "-");
+  results.append("inertial_number", m.inertial_number, "- ((eps_dot_1 - eps_dot_3) d50 sqrt(rho/p))");
+  results.append("inertial_number_axial", m.inertial_number_axial, "- (eps_dot_1 d50 sqrt(rho/p): what shear.inertial_number sets)");
   results.append("wall_time", wall, "s");
 }
 
@@ -194,7 +207,7 @@ class AccuracyWatch {
 
   void check(const Measures& m, std::uint64_t step) {
     const double ratio = m.elastic_energy > 0.0 ? m.kinetic_energy / m.elastic_energy : 0.0;
-    const double values[k_count] = {m.inertial_number, m.unbalanced, ratio, m.max_overlap_ratio};
+    const double values[k_count] = {m.inertial_number_axial, m.unbalanced, ratio, m.max_overlap_ratio};
     for (int k = 0; k < k_count; ++k) {
       worst_[k] = std::max(worst_[k], values[k]);
       if (values[k] > k_limits[k].limit && !warned_[k]) {
@@ -215,11 +228,15 @@ class AccuracyWatch {
     const char* why;
   };
   static constexpr int k_count = 4;
-  // Safe ranges: I < 1e-3 is the quasi-static regime of dense granular flow (GDR MiDi 2004); an
-  // unbalanced force ratio above 0.1 and a kinetic energy above 1 % of the stored elastic energy
-  // mean inertia carries part of the load; Hertz theory assumes overlaps small beside the radius.
+  // Safe ranges. The inertial number in the form shear.inertial_number sets (eps_dot_1 d50
+  // sqrt(rho/p)): the inertia study (docs/study-inertia) found every measure within one test's
+  // scatter from I = 1e-5 up to 3e-3 and the peak q/p 0.05-0.5 too high at 1e-2; the limit is 3e-3
+  // plus 5 % for the fluctuation of the measured p between servo updates. An unbalanced force
+  // ratio above 0.1 and a kinetic energy above 1 % of the stored elastic energy mean inertia
+  // carries part of the load; Hertz theory assumes overlaps small beside the radius.
   static constexpr Limit k_limits[k_count] = {
-      {"inertial number", 1e-3, "quasi-static needs I < 1e-3: lower shear.strain_rate"},
+      {"inertial number eps_dot_1 d50 sqrt(rho/p)", 3.15e-3,
+       "validated up to 3e-3 (docs/study-inertia): lower shear.strain_rate or shear.inertial_number"},
       {"unbalanced force ratio", 0.1, "forces far from balance: lower shear.strain_rate"},
       {"kinetic / elastic energy", 0.01, "inertia carries load: lower shear.strain_rate"},
       {"max overlap / radius", 0.05, "beyond small-strain Hertz contact: raise material.young or lower p0"},
@@ -296,6 +313,13 @@ Model prepare_model(const Plan& plan, double p0) {
   return m;
 }
 
+// The axial rate of a test at p = p0, 1/s: shear.strain_rate, or what shear.inertial_number sets.
+double axial_rate(const Plan& plan, double p0) {
+  const ShearConfig& h = plan.config.shear;
+  if (h.inertial_number > 0.0) return h.inertial_number * std::sqrt(p0 / plan.config.material.density) / plan.d50;
+  return h.strain_rate;
+}
+
 Model shear_model(const Plan& plan, const TestSpec& test) {
   Model m = plan.base;
   const ShearConfig& h = plan.config.shear;
@@ -304,13 +328,23 @@ Model shear_model(const Plan& plan, const TestSpec& test) {
   s.enabled = true;
   s.path = test.path == ShearPath::constant_p ? StressPath::constant_p_b : StressPath::constant_sigma3_b;
   s.control = {AxisControl::strain, AxisControl::stress, AxisControl::stress};
-  s.strain_rate = Vec3(h.strain_rate, 0.0, 0.0);
-  // A linear ramp over ramp_strain of (logarithmic) axial strain takes 2 ramp_strain / rate.
-  s.ramp_time = 2.0 * h.ramp_strain / h.strain_rate;
+  const double rate0 = axial_rate(plan, test.p0);
+  if (h.inertial_number > 0.0) {
+    // The servo scales the direction (1, 0, 0) by I sqrt(p/rho) / d50 at each update.
+    s.strain_rate = Vec3(1.0, 0.0, 0.0);
+    s.inertial_number = h.inertial_number;
+    s.d50 = plan.d50;
+    s.density = plan.config.material.density;
+  } else {
+    s.strain_rate = Vec3(h.strain_rate, 0.0, 0.0);
+  }
+  // A linear ramp over ramp_strain of (logarithmic) axial strain takes 2 ramp_strain / rate (at a
+  // set inertial number, the rate at p = p0).
+  s.ramp_time = 2.0 * h.ramp_strain / rate0;
   s.p = test.p0;
   s.sigma3 = test.p0;
   s.b = test.b;
-  s.max_rate = h.max_rate;
+  s.max_rate = h.max_rate > 0.0 ? h.max_rate : 10.0 * rate0;
   s.gain = h.gain > 0.0 ? h.gain : derived_gain(k_shear_alpha, test.p0, m, plan.servo_time);
   s.integral_time = h.integral_time > 0.0 ? h.integral_time : k_integral_units * plan.servo_time;
   s.interval = h.servo_interval;
@@ -322,6 +356,7 @@ Model shear_model(const Plan& plan, const TestSpec& test) {
 struct Summary {
   std::string name;
   std::string status = "not run";
+  std::string from = "cloud";  // preparations: what it started from (the cloud, or a lower p0's sample)
   double e0 = 0.0, z0 = 0.0, peak_eta = 0.0, peak_strain = 0.0, final_eta = 0.0, final_e = 0.0, final_p = 0.0;
   double final_strain = 0.0;
   double z_mech = 0.0, unbalanced = 0.0;  // preparations: at the end
@@ -367,6 +402,7 @@ bool Runner::prepare(double p0, Summary& summary) {
     summary.steps = st.clock.step;
     summary.wall = value("wall_time");
     summary.status = "done (earlier run)";
+    if (const double from = plan_.chained_from(p0); from > 0.0) summary.from = "sample-" + p0_tag(from);
     return true;
   }
   const Model model = prepare_model(plan_, p0);
@@ -382,20 +418,32 @@ bool Runner::prepare(double p0, Summary& summary) {
     results.emplace(ResultsFile::reopen(series, state.clock.step));
     resumed = true;
     log_.line(summary.name + ": resumed at step " + std::to_string(state.clock.step));
+  } else if (const double from = plan_.chained_from(p0); from > 0.0) {
+    // The laboratory sequence: the sample prepared at the next lower p0, compressed on to p0.
+    state = read_checkpoint(sample_path(from), nullptr);
+    state.clock = {};
+    state.cell.rate.setZero();
+    state.cell.servo_integral.setZero();  // servo state resets between stages
+    results.emplace(ResultsFile::create(series, plan_.config.text,
+                                        {{"job", summary.name}, {"stage", "prepare"}, {"from", "sample-" + p0_tag(from)}}));
   } else {
     Packing packing = plan_.packing;
     if (!plan_.from_file) packing = generate_packing(plan_.config.sample.generation);
     state = make_state(model, packing);
     results.emplace(ResultsFile::create(series, plan_.config.text, {{"job", summary.name}, {"stage", "prepare"}}));
   }
-  World world(model, std::move(state), ExecutorConfig{Backend::tbb, plan_.job_threads}, !resumed);
+  if (const double from = plan_.chained_from(p0); from > 0.0) summary.from = "sample-" + p0_tag(from);
+  // A chained preparation continues a sample whose forces are in its state, as a test does.
+  const bool initial_forces = !resumed && plan_.chained_from(p0) == 0.0;
+  World world(model, std::move(state), ExecutorConfig{Backend::tbb, plan_.prepare_threads}, initial_forces);
   MeasureOptions mo;
   mo.d50 = median_diameter(world.state().particles);
   mo.density = plan_.config.material.density;
-  log_.line(summary.name + ": isotropic compression to " + num(p0 / 1e6) + " MPa, " +
+  log_.line(summary.name + ": isotropic compression to " + num(p0 / 1e6) + " MPa from the " +
+            (summary.from == "cloud" ? std::string(plan_.from_file ? "packing file" : "cloud") : summary.from) + ", " +
             std::to_string(world.state().particles.size()) + " spheres, dt = " + num(model.dt) + " s, servo gain " +
             num(model.servo.gain, "%.4g") + " 1/s, " +
-            std::to_string(plan_.job_threads) + " threads");
+            std::to_string(plan_.prepare_threads) + " threads");
   std::uint64_t rows = 0;
   const auto row = [&](const Measures& m) {
     append_row(*results, world.state(), m, timer.elapsed());
@@ -542,7 +590,7 @@ void Runner::shear(const TestSpec& test, Summary& summary) {
     state.cell.length0 = state.cell.length;
     state.cell.servo_integral.setZero();  // servo state resets between stages
     if (test.path == ShearPath::strain) state.cell.rate = -h.strain_rates;
-    else state.cell.rate = Vec3(h.ramp_strain > 0.0 ? 0.0 : -h.strain_rate, 0.0, 0.0);
+    else state.cell.rate = Vec3(h.ramp_strain > 0.0 ? 0.0 : -axial_rate(plan_, test.p0), 0.0, 0.0);
     results.emplace(ResultsFile::create(path, plan_.config.text,
                                         {{"job", test.name}, {"stage", "shear"}, {"path", path_name(test.path)},
                                          {"b", num(test.b)}, {"p0", num(test.p0)}}));
@@ -576,7 +624,6 @@ void Runner::shear(const TestSpec& test, Summary& summary) {
   const auto t0 = Clock::now();
   const std::uint64_t step0 = world.state().clock.step;
   const OutputConfig& o = plan_.config.output;
-  const double rate = test.path == ShearPath::strain ? 0.0 : h.strain_rate;
   auto last_progress = Clock::now();
   const auto axial_strain = [](const Cell& cell) { return -std::log(cell.length[0] / cell.length0[0]); };
   const auto finished = [&](std::uint64_t s, double eps1) {
@@ -624,8 +671,9 @@ void Runner::shear(const TestSpec& test, Summary& summary) {
     if (progress_due()) {
       last_progress = Clock::now();
       const double speed = double(s - step0) / std::chrono::duration<double>(Clock::now() - t0).count();
-      const double left = rate > 0.0 ? (max_strain - eps1) / (rate * world.model().dt) / speed
-                                     : double(h.steps - s) / speed;
+      const double rate = -st.cell.rate[0];  // 1/s, the axial rate now
+      const double left = test.path != ShearPath::strain ? (rate > 0.0 ? (max_strain - eps1) / (rate * world.model().dt) / speed : 0.0)
+                                                         : double(h.steps - s) / speed;
       log_.progress(test.name + " step " + std::to_string(s) + "  eps1 " + num(100 * eps1, "%.2f") + " %  p " +
                         num(m.inv.p / 1e6, "%.4f") + " MPa  q " + num(m.inv.q / 1e6, "%.4f") + " MPa  e " +
                         num(m.void_ratio, "%.4f") + "  I " + num(m.inertial_number, "%.1e") + "  unbal " +
@@ -692,6 +740,11 @@ Plan make_plan(Config config_in, const Options& options) {
   }
   plan.r_min = 0.5 * *std::min_element(diameters.begin(), diameters.end());
   plan.r_max = 0.5 * *std::max_element(diameters.begin(), diameters.end());
+  {
+    std::vector<double> radii(diameters.size());
+    for (std::size_t k = 0; k < diameters.size(); ++k) radii[k] = 0.5 * diameters[k];
+    plan.d50 = median_diameter(radii);
+  }
   double solid = 0.0;
   for (double d : diameters) solid += std::numbers::pi / 6.0 * d * d * d;
 
@@ -725,6 +778,7 @@ Plan make_plan(Config config_in, const Options& options) {
   }
   for (const TestSpec& t : config.tests)
     if (std::find(plan.p0.begin(), plan.p0.end(), t.p0) == plan.p0.end()) plan.p0.push_back(t.p0);
+  if (config.prepare.chain) std::sort(plan.p0.begin(), plan.p0.end());
   // Servo settings are checked here, before anything is written.
   try {
     validate(prepare_model(plan, plan.p0.front()).servo);
@@ -737,6 +791,7 @@ Plan make_plan(Config config_in, const Options& options) {
   }
   const int total = options.threads > 0 ? options.threads : std::max(1, static_cast<int>(std::thread::hardware_concurrency()));
   plan.job_threads = std::max(1, total / std::max(1, config.parallel));
+  plan.prepare_threads = config.prepare.chain ? total : plan.job_threads;
   return plan;
 }
 
@@ -781,13 +836,13 @@ void write_index(const Plan& plan, const std::vector<Summary>& prep, const std::
   });
   // One row per sample: the preparation's end state, which every test on it starts from.
   write_replacing(plan, "samples.csv", [&](std::ostream& out) {
-    out << "sample,p0_Pa,file,status,p_Pa,e0,Z,Z_mech,unbalanced,steps,wall_s\n";
+    out << "sample,p0_Pa,file,status,p_Pa,e0,Z,Z_mech,unbalanced,steps,wall_s,from\n";
     for (std::size_t k = 0; k < prep.size(); ++k) {
       const Summary& s = prep[k];
       const std::string tag = p0_tag(plan.p0[k]);
       out << "sample-" << tag << ',' << num(plan.p0[k]) << ",sample-" << tag << ".h5," << s.status << ',' << num(s.final_p)
           << ',' << num(s.e0) << ',' << num(s.z0) << ',' << num(s.z_mech) << ',' << num(s.unbalanced) << ',' << s.steps << ','
-          << num(s.wall) << '\n';
+          << num(s.wall) << ',' << s.from << '\n';
     }
   });
 }
@@ -868,6 +923,7 @@ int triaxial_main(int argc, const char* const* argv, std::ostream& out, std::ost
   app.add_flag("--overwrite", options.overwrite, "replace the results of an earlier run in the output directory");
   app.add_option("--max-axial-strain", options.max_axial_strain, "override shear.max_axial_strain (short runs)")
       ->check(CLI::Range(1e-9, 2.0));
+  app.add_flag("--prepare-only", options.prepare_only, "prepare the campaign's samples and stop (no test is sheared)");
   app.add_flag("--print-default", print_default, "print the embedded default configuration and exit");
   app.add_option("--stop-after", options.stop_after,
                  "stop every job after N steps with a checkpoint, as if killed (to test --resume)");
@@ -938,9 +994,11 @@ int triaxial_main(int argc, const char* const* argv, std::ostream& out, std::ost
   log.line("sandcell triaxial: " + plan.config.source + " -> " + plan.out.string() + ": " +
            std::to_string(plan.config.tests.size()) + " test(s), " + std::to_string(plan.p0.size()) + " sample(s), " +
            std::to_string(plan.config.parallel) + " at once x " + std::to_string(plan.job_threads) + " thread(s)");
-  if (plan.config.dt_fraction > 0.3)  // once per run: it concerns every stage
+  // Once per run: it concerns every stage. The speed/accuracy study (docs/study) moved the peak
+  // q/p by 1e-4 from dt = 0.05 to 0.5 t_R; beyond that nothing is measured.
+  if (plan.config.dt_fraction > 0.5)
     log.line("warning: time.dt_fraction = " + num(plan.config.dt_fraction) +
-             " > 0.3 of the Rayleigh time: contact collisions resolved by few steps");
+             " > 0.5 of the Rayleigh time (the largest the speed/accuracy study validated): contact collisions resolved by few steps");
   Runner runner(plan, log);
   std::vector<Summary> prep(plan.p0.size()), tests(plan.config.tests.size());
   std::vector<char> prepared(plan.p0.size(), 0);
@@ -956,7 +1014,16 @@ int triaxial_main(int argc, const char* const* argv, std::ostream& out, std::ost
     ++failures;
     log.line("triaxial: " + what + ": " + e.what());
   };
-  run_parallel(plan.p0.size(), plan.config.parallel, [&](std::size_t k) {
+  // Chained preparations run in order of p0, each after the one it starts from.
+  run_parallel(plan.p0.size(), plan.config.prepare.chain ? 1 : plan.config.parallel, [&](std::size_t k) {
+    if (const double from = plan.chained_from(plan.p0[k]); from > 0.0) {
+      const std::size_t before = std::find(plan.p0.begin(), plan.p0.end(), from) - plan.p0.begin();
+      if (!prepared[before]) {
+        prep[k].name = "prepare-" + p0_tag(plan.p0[k]);
+        prep[k].status = "skipped (sample-" + p0_tag(from) + " failed)";
+        return;
+      }
+    }
     try {
       prepared[k] = runner.prepare(plan.p0[k], prep[k]);
     } catch (const std::exception& e) {
@@ -964,7 +1031,7 @@ int triaxial_main(int argc, const char* const* argv, std::ostream& out, std::ost
       failed(prep[k].name.empty() ? "prepare-" + p0_tag(plan.p0[k]) : prep[k].name, e);
     }
   });
-  run_parallel(plan.config.tests.size(), plan.config.parallel, [&](std::size_t k) {
+  run_parallel(options.prepare_only ? 0 : plan.config.tests.size(), plan.config.parallel, [&](std::size_t k) {
     const TestSpec& t = plan.config.tests[k];
     const std::size_t sample = std::find(plan.p0.begin(), plan.p0.end(), t.p0) - plan.p0.begin();
     tests[k].name = t.name;

@@ -135,6 +135,12 @@ TEST_CASE("triaxial: each class of bad input exits 2 naming the key, and clobber
        "diameters must increase"},
       {"missing packing file", with("sample", "file = \"/nonexistent/packing.txt\""), "sample.file"},
       {"ramp longer than the test", with("shear", "ramp_strain = 0.05"), "shear.ramp_strain = 0.05: must be below shear.max_axial_strain = 0.03"},
+      {"both an axial rate and an inertial number", with("shear", "inertial_number = 2e-3"),
+       "shear.strain_rate = 2 and shear.inertial_number = 0.002: give exactly one of the two"},
+      {"a non-positive inertial number", std::string(base).replace(base.find("strain_rate = 2.0"), 17, "inertial_number = 0.0"),
+       "shear.inertial_number = 0: must be in (0, 0.1]"},
+      {"neither an axial rate nor an inertial number", std::string(base).replace(base.find("strain_rate = 2.0"), 17, ""),
+       "shear.strain_rate and shear.inertial_number: neither is given"},
   };
   for (const Case& c : cases) {
     const std::string what = c.what;
@@ -207,8 +213,8 @@ TEST_CASE("triaxial: stop and --resume (other thread counts) is bitwise identica
     return fields;
   };
   const std::vector<std::string> ra = sample_row(a / "samples.csv"), rb = sample_row(b / "samples.csv");
-  REQUIRE(ra.size() == 11);
-  REQUIRE(rb.size() == 11);
+  REQUIRE(ra.size() == 12);
+  REQUIRE(rb.size() == 12);
   CHECK(ra[0] == "sample-p0_100kPa");
   CHECK(ra[3] == "done");
   CHECK(rb[3] == "done (earlier run)");
@@ -235,6 +241,10 @@ TEST_CASE("triaxial: the embedded default runs end to end and writes the documen
   const Result r = run({"--out", dir.string(), "--max-axial-strain", "0.015"});
   INFO(r.out, r.err);
   REQUIRE(r.code == 0);
+  // The default stays inside every validated range: no accuracy warning (the inertial number
+  // peaked at 1.8e-3 in the (eps_dot_1 - eps_dot_3) form in the first 1.5 % and warned before).
+  CHECK(r.out.find("warning") == std::string::npos);
+  CHECK(r.err.find("warning") == std::string::npos);
   const fs::path results = dir / "p-b0.50-p0_500kPa.h5";
   for (const char* name : {"time", "step", "strain", "stress", "principal_stress", "p", "q", "eta", "b", "theta",
                            "eps_v", "eps_q", "e", "Z", "Z_mech", "fabric", "kinetic_energy", "elastic_energy", "max_overlap_ratio",
@@ -289,6 +299,71 @@ TEST_CASE("triaxial: shear.ramp_strain raises the axial rate linearly: eps1 = ra
   }
   CHECK(during >= 3);
   CHECK(after >= 3);
+  fs::remove_all(dir);
+}
+
+TEST_CASE("triaxial: shear.inertial_number holds eps_dot_1 d50 sqrt(rho/p) at its target as p changes") {
+  // Constant p and constant sigma3 (where p grows by ~20 % over 3 % strain, so a fixed axial rate
+  // would let I drift by ~10 %), with the rate ramped over 0.5 % strain. The servo sets the axial
+  // rate from the stress it measured in the step before; p moves by far less than 1 % per step, so
+  // the issue's 10 % bound is loose against a law that holds. Also the series' axial rate must be
+  // I sqrt(p/rho) / d50 with the d50 of the sample: the same law, read independently.
+  const fs::path dir = fresh_dir("inertial");
+  std::string config = k_small;
+  config.replace(config.find("strain_rate = 2.0"), 17, "inertial_number = 2e-3\nramp_strain = 0.005");
+  config.replace(config.find("path = \"constant_p\""), 19, "path = [\"constant_p\", \"constant_sigma3\"]");
+  write(dir / "inertial.toml", config);
+  const Result r = run({(dir / "inertial.toml").string(), "--out", dir.string()});
+  INFO(r.out, r.err);
+  REQUIRE(r.code == 0);
+  const double target = 2e-3;
+  for (const char* name : {"p-b0.50-p0_100kPa.h5", "s3-b0.50-p0_100kPa.h5"}) {
+    CAPTURE(name);
+    const std::vector<double> inertial = dataset(dir / name, "/series/inertial_number_axial");
+    const std::vector<double> strain = dataset(dir / name, "/series/strain");  // (rows, 3)
+    const std::vector<double> p = dataset(dir / name, "/series/p");
+    int after = 0;
+    double p_min = p.front(), p_max = p.front();
+    for (std::size_t k = 0; k < inertial.size(); ++k) {
+      if (strain[3 * k] < 0.005) continue;  // the ramp
+      CAPTURE(strain[3 * k]);
+      CHECK(std::abs(inertial[k] - target) <= 0.1 * target);
+      p_min = std::min(p_min, p[k]);
+      p_max = std::max(p_max, p[k]);
+      ++after;
+    }
+    CHECK(after >= 10);
+    if (std::string(name).starts_with("s3")) CHECK(p_max / p_min > 1.1);  // the law was exercised
+  }
+  fs::remove_all(dir);
+}
+
+TEST_CASE("triaxial: prepare.chain compresses the lower p0's sample on to the next p0") {
+  // Two p0; the 0.2 MPa sample continues the 0.1 MPa one: its preparation starts at p ~ 0.1 MPa
+  // (within the 1 % criterion the lower sample met), ends at 0.2 MPa (1 % per axis) and is denser
+  // (the same skeleton under twice the pressure compresses: e falls). samples.csv says so.
+  const fs::path dir = fresh_dir("chain");
+  std::string config = k_small;
+  config.replace(config.find("p0 = 0.1e6"), 10, "p0 = [0.2e6, 0.1e6]");
+  config.insert(config.find("[prepare]\n") + 10, "chain = true\n");
+  config.replace(config.find("max_axial_strain = 0.03"), 23, "max_axial_strain = 0.002");
+  write(dir / "chain.toml", config);
+  const Result r = run({(dir / "chain.toml").string(), "--out", dir.string()});
+  INFO(r.out, r.err);
+  REQUIRE(r.code == 0);
+  const std::vector<double> p = dataset(dir / "prepare-p0_200kPa.h5", "/series/p");
+  CHECK(p.front() == doctest::Approx(0.1e6).epsilon(0.01));
+  const std::vector<double> e_low = dataset(dir / "prepare-p0_100kPa.h5", "/series/e");
+  const std::vector<double> e_high = dataset(dir / "prepare-p0_200kPa.h5", "/series/e");
+  // The lower preparation's last row is at most series_interval steps before its converged end.
+  CHECK(e_high.front() == doctest::Approx(e_low.back()).epsilon(1e-3));
+  CHECK(e_high.back() < e_low.back());
+  const std::string samples = read(dir / "samples.csv");
+  CHECK(samples.find("sample-p0_100kPa,100000,sample-p0_100kPa.h5,done") != std::string::npos);
+  CHECK(samples.find(",cloud\n") != std::string::npos);
+  CHECK(samples.find(",sample-p0_100kPa\n") != std::string::npos);
+  const State sample = read_checkpoint(dir / "sample-p0_200kPa.h5");
+  CHECK(sample.particles.size() == 300);
   fs::remove_all(dir);
 }
 
