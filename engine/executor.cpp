@@ -9,7 +9,13 @@
 #include <oneapi/tbb/parallel_for.h>
 #include <oneapi/tbb/partitioner.h>
 
+#include <cstdlib>
 #include <string>
+#include <thread>
+
+#ifdef __linux__
+#include <sched.h>
+#endif
 
 namespace sandcell {
 
@@ -23,11 +29,28 @@ Executor::Executor(ExecutorConfig config) : backend_(config.backend) {
     threads_ = 1;
     return;
   }
-  threads_ = config.threads > 0 ? config.threads : tbb::info::default_concurrency();
+  threads_ = config.threads > 0 ? config.threads : available_cpus();
   impl_ = std::make_unique<Impl>(threads_);
 }
 
 Executor::~Executor() = default;
+
+int available_cpus() {
+  if (const char* slurm = std::getenv("SLURM_CPUS_PER_TASK"); slurm && *slurm) {
+    char* end = nullptr;
+    const long n = std::strtol(slurm, &end, 10);
+    if (end && *end == '\0' && n > 0 && n <= 1 << 20) return static_cast<int>(n);
+  }
+#ifdef __linux__
+  cpu_set_t set;
+  CPU_ZERO(&set);
+  if (sched_getaffinity(0, sizeof set, &set) == 0) {
+    const int n = CPU_COUNT(&set);
+    if (n > 0) return n;
+  }
+#endif
+  return std::max(1, static_cast<int>(std::thread::hardware_concurrency()));
+}
 
 void Executor::parallel_for(std::size_t n, std::size_t grain,
                             FunctionRef<void(std::size_t, std::size_t)> body) {

@@ -18,8 +18,13 @@ enum class Backend { serial, tbb };
 
 struct ExecutorConfig {
   Backend backend = Backend::tbb;
-  int threads = 0;  // 0: all hardware threads; ignored by the serial backend (always 1)
+  int threads = 0;  // 0: available_cpus(); ignored by the serial backend (always 1)
 };
+
+/// The CPUs this process may use: SLURM_CPUS_PER_TASK inside a Slurm job step when it is a positive
+/// integer, else the CPUs of the process's affinity mask (sched_getaffinity: taskset, cgroups
+/// cpusets, a scheduler's binding), else std::thread::hardware_concurrency(); at least 1.
+int available_cpus();
 
 class Executor {
  public:

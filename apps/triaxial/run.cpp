@@ -789,7 +789,7 @@ Plan make_plan(Config config_in, const Options& options) {
   } catch (const std::invalid_argument& e) {
     throw ConfigError(src + ": " + e.what());
   }
-  const int total = options.threads > 0 ? options.threads : std::max(1, static_cast<int>(std::thread::hardware_concurrency()));
+  const int total = options.threads > 0 ? options.threads : available_cpus();
   plan.job_threads = std::max(1, total / std::max(1, config.parallel));
   plan.prepare_threads = config.prepare.chain ? total : plan.job_threads;
   return plan;
@@ -917,7 +917,8 @@ int triaxial_main(int argc, const char* const* argv, std::ostream& out, std::ost
              "Strain localization (shear bands) from the particle snapshots of results files:\n"
              "  triaxial localization RESULTS.h5... [--out DIR] [--grid G] [--whole] [--slabs K]   (triaxial localization --help)");
   app.add_option("config", options.config_path, "TOML configuration (none: the embedded default)");
-  app.add_option("--threads", options.threads, "worker threads in all (default: all cores)")->check(CLI::Range(1, 1024));
+  app.add_option("--threads", options.threads,
+                 "worker threads in all (default: the CPUs this process may use: SLURM_CPUS_PER_TASK, else its affinity mask)")->check(CLI::Range(1, 1024));
   app.add_option("--out", options.out, "output directory (default: results/<config name>)");
   app.add_flag("--resume", options.resume, "continue a killed run from its checkpoints");
   app.add_flag("--overwrite", options.overwrite, "replace the results of an earlier run in the output directory");
@@ -994,6 +995,9 @@ int triaxial_main(int argc, const char* const* argv, std::ostream& out, std::ost
   log.line("sandcell triaxial: " + plan.config.source + " -> " + plan.out.string() + ": " +
            std::to_string(plan.config.tests.size()) + " test(s), " + std::to_string(plan.p0.size()) + " sample(s), " +
            std::to_string(plan.config.parallel) + " at once x " + std::to_string(plan.job_threads) + " thread(s)");
+  if (options.threads > available_cpus())
+    log.line("warning: --threads " + std::to_string(options.threads) + " > the " + std::to_string(available_cpus()) +
+             " CPUs this process may use (SLURM_CPUS_PER_TASK, else its affinity mask): threads will share cores");
   // Once per run: it concerns every stage. The speed/accuracy study (docs/study) moved the peak
   // q/p by 1e-4 from dt = 0.05 to 0.5 t_R; beyond that nothing is measured.
   if (plan.config.dt_fraction > 0.5)

@@ -9,7 +9,10 @@
 #include <doctest/doctest.h>
 #include <hdf5.h>
 
+#include <sched.h>
+
 #include <cmath>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
@@ -367,12 +370,49 @@ TEST_CASE("triaxial: prepare.chain compresses the lower p0's sample on to the ne
   fs::remove_all(dir);
 }
 
+TEST_CASE("triaxial: the default thread count is the CPUs of the affinity mask (taskset -c 0: 1 thread)") {
+  cpu_set_t saved;
+  REQUIRE(sched_getaffinity(0, sizeof saved, &saved) == 0);
+  const char* slurm = std::getenv("SLURM_CPUS_PER_TASK");
+  const std::string slurm_saved = slurm ? slurm : "";
+  ::unsetenv("SLURM_CPUS_PER_TASK");
+  int first = 0;
+  while (!CPU_ISSET(first, &saved)) ++first;
+  cpu_set_t one;
+  CPU_ZERO(&one);
+  CPU_SET(first, &one);
+  REQUIRE(sched_setaffinity(0, sizeof one, &one) == 0);
+  const fs::path dir = fresh_dir("affinity");
+  std::string config = k_small;
+  config.replace(config.find("max_axial_strain = 0.03"), 23, "max_axial_strain = 0.001");
+  write(dir / "one.toml", config);
+  const Result r = run({(dir / "one.toml").string(), "--out", (dir / "a").string()});
+  const Result over = run({(dir / "one.toml").string(), "--out", (dir / "b").string(), "--threads", "2"});
+  REQUIRE(sched_setaffinity(0, sizeof saved, &saved) == 0);
+  if (!slurm_saved.empty()) ::setenv("SLURM_CPUS_PER_TASK", slurm_saved.c_str(), 1);
+  INFO(r.out, r.err);
+  REQUIRE(r.code == 0);
+  CHECK(r.out.find("1 at once x 1 thread(s)") != std::string::npos);
+  CHECK(r.out.find("warning") == std::string::npos);
+  // More threads than the mask allows: run, with a warning naming both counts.
+  CHECK(over.code == 0);
+  CHECK(over.out.find("warning: --threads 2 > the 1 CPUs this process may use") != std::string::npos);
+  fs::remove_all(dir);
+}
+
 TEST_CASE("triaxial: the shipped configs parse, and default.toml is the embedded default") {
   const fs::path dir = fs::path(SANDCELL_SOURCE_DIR) / "apps/triaxial/configs";
   CHECK(read(dir / "default.toml") == triaxial::k_default_config);
   const triaxial::Config paper = triaxial::parse_config(read(dir / "paper.toml"), "paper.toml");
   CHECK(paper.tests.size() == 60);  // 6 p0 x 2 paths x 5 b
   CHECK(paper.sample.generation.count == 19436);
+  // The fast protocol: the same campaign and sample, at a set inertial number, chained preparations.
+  const triaxial::Config fast = triaxial::parse_config(read(dir / "paper-fast.toml"), "paper-fast.toml");
+  CHECK(fast.tests.size() == 60);
+  CHECK(fast.sample.generation.count == 19436);
+  CHECK(fast.shear.inertial_number > 0.0);
+  CHECK(fast.shear.strain_rate == 0.0);
+  CHECK(fast.prepare.chain);
 }
 
 TEST_CASE("triaxial: a campaign runs tests at once from one prepared sample, each as if alone") {
