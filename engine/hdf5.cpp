@@ -379,11 +379,18 @@ namespace {
 //   in dense storage instead of being refused;
 // - "semi" close degree: H5Fclose fails while objects are open, instead of closing the file
 //   behind their back (strong) or silently keeping it open (weak).
+// - no HDF5 file locks: a writer's exclusive lock would keep every reader (h5py, h5dump, ParaView)
+//   out of a results file for the whole run, and file systems without flock (some NFS and Lustre
+//   mounts) fail the open. A reader sees the file as of its last flush. That one process writes a
+//   file is the output directory's lock's job (apps/triaxial/lock.hpp), not HDF5's.
 Handle access_properties(const std::string& path) {
   Handle fapl(H5Pcreate(H5P_FILE_ACCESS));
   if (!fapl.valid() || H5Pset_libver_bounds(fapl.get(), H5F_LIBVER_V18, H5F_LIBVER_LATEST) < 0 ||
       H5Pset_fclose_degree(fapl.get(), H5F_CLOSE_SEMI) < 0)
     throw_error(path, "", "cannot set up file access properties");
+#if H5_VERSION_GE(1, 10, 7)
+  if (H5Pset_file_locking(fapl.get(), false, true) < 0) throw_error(path, "", "cannot turn off HDF5 file locking");
+#endif
   return fapl;
 }
 }  // namespace

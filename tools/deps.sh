@@ -4,7 +4,8 @@
 set -euo pipefail
 packages=(build-essential cmake ninja-build libeigen3-dev libtbb-dev libhdf5-dev doctest-dev
           libtomlplusplus-dev libcli11-dev libfmt-dev
-          python3-h5py python3-matplotlib python3-numpy python3-scipy)
+          python3-h5py python3-matplotlib python3-numpy python3-scipy
+          slurm-wlm munge)  # slurm-wlm, munge: the cluster test starts a real single-node Slurm
 missing=()
 for p in "${packages[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q 'install ok installed' || missing+=("$p")

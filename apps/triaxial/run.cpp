@@ -2,6 +2,9 @@
 
 #include "config.hpp"
 #include "critical.hpp"
+#include "lock.hpp"
+#include "signals.hpp"
+#include "slurm.hpp"
 
 #include "engine/checkpoint.hpp"
 #include "engine/generate.hpp"
@@ -12,6 +15,7 @@
 
 #include <CLI/CLI.hpp>
 
+#include <signal.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -80,10 +84,21 @@ struct Options {
   double max_axial_strain = 0.0;  // > 0: overrides shear.max_axial_strain (short runs, CI)
   bool progress = false;
   bool prepare_only = false;      // run the preparations, no test
+  bool list = false;              // print the tasks and exit
+  std::vector<std::string> task_specs;  // --task values as given
   std::uint64_t stop_after = 0;   // > 0: each job stops after this many steps of this process, with a
                                   // checkpoint, as a killed run would (to test --resume)
   /// Whether a job that started this process at step0 stops (--stop-after) at step s.
-  bool stop_due(std::uint64_t s, std::uint64_t step0) const { return stop_after > 0 && s - step0 >= stop_after; }
+  /// Also true once a stop signal arrived (signals.hpp): the job checkpoints and stops.
+  bool stop_due(std::uint64_t s, std::uint64_t step0) const {
+    return (stop_after > 0 && s - step0 >= stop_after) || stop_requested();
+  }
+  /// Why a job stopped, for its last line.
+  static std::string stop_reason() {
+    if (!stop_requested()) return "--stop-after";
+    const int sig = stop_signal();
+    return sig == SIGTERM ? "SIGTERM" : sig == SIGINT ? "SIGINT" : sig == SIGUSR1 ? "SIGUSR1" : "signal " + std::to_string(sig);
+  }
 };
 
 // A job stopped on request (--stop-after) after writing its checkpoint.
@@ -371,6 +386,16 @@ class Runner {
 
   fs::path sample_path(double p0) const { return plan_.out / ("sample-" + p0_tag(p0) + ".h5"); }
 
+  /// The summary of a finished preparation, read back from its sample file.
+  Summary sample_summary(double p0) const;
+  /// The summary of a test from its checkpoint (state and extras): done when marked complete.
+  Summary test_summary(const TestSpec& test, const State& state, CheckpointExtra& extra) const;
+  /// What the output directory says of a test run elsewhere (another task): from its checkpoint.
+  Summary test_summary_on_disk(const TestSpec& test) const;
+  /// Makes sure the sample for p0 exists: prepares it (and, chained, the lower ones first) under
+  /// its job lock unless another process already did. Returns false when a preparation failed.
+  bool ensure_sample(double p0);
+
   // Prepares the sample for p0 (or finds it prepared). Returns false on failure.
   bool prepare(double p0, Summary& summary);
   void shear(const TestSpec& test, Summary& summary);
@@ -381,28 +406,38 @@ class Runner {
   bool single_job() const { return plan_.config.parallel == 1; }
 };
 
+Summary Runner::sample_summary(double p0) const {
+  Summary summary;
+  summary.name = "prepare-" + p0_tag(p0);
+  CheckpointExtra extra;
+  const State st = read_checkpoint(sample_path(p0), &extra);
+  const auto value = [&](const char* key) {  // NaN when a sample file of an older version lacks it
+    const auto it = extra.doubles.find(key);
+    return it != extra.doubles.end() && !it->second.empty() ? it->second.front() : std::nan("");
+  };
+  summary.e0 = value("e0");
+  summary.z0 = value("Z");
+  summary.z_mech = value("Z_mech");
+  summary.unbalanced = value("unbalanced");
+  summary.final_p = value("p");
+  summary.steps = st.clock.step;
+  summary.wall = value("wall_time");
+  summary.status = "done (earlier run)";
+  if (const double from = plan_.chained_from(p0); from > 0.0) summary.from = "sample-" + p0_tag(from);
+  return summary;
+}
+
 bool Runner::prepare(double p0, Summary& summary) {
   const std::string tag = p0_tag(p0);
   summary.name = "prepare-" + tag;
   const fs::path sample = sample_path(p0);
   const fs::path ckpt = plan_.out / ("prepare-" + tag + ".checkpoint.h5");
   const fs::path series = plan_.out / ("prepare-" + tag + ".h5");
-  if (fs::exists(sample)) {  // only reachable with --resume: a finished preparation
-    CheckpointExtra extra;
-    const State st = read_checkpoint(sample, &extra);
-    const auto value = [&](const char* key) {  // NaN when a sample file of an older version lacks it
-      const auto it = extra.doubles.find(key);
-      return it != extra.doubles.end() && !it->second.empty() ? it->second.front() : std::nan("");
-    };
-    summary.e0 = value("e0");
-    summary.z0 = value("Z");
-    summary.z_mech = value("Z_mech");
-    summary.unbalanced = value("unbalanced");
-    summary.final_p = value("p");
-    summary.steps = st.clock.step;
-    summary.wall = value("wall_time");
-    summary.status = "done (earlier run)";
-    if (const double from = plan_.chained_from(p0); from > 0.0) summary.from = "sample-" + p0_tag(from);
+  // One process prepares a sample at a time; another task that needs it waits here, then finds it.
+  FileLock job;
+  job.lock(plan_.out / ".locks" / ("prepare-" + tag + ".lock"), FileLock::Mode::exclusive);
+  if (fs::exists(sample)) {  // only reachable with --resume or --task: a finished preparation
+    summary = sample_summary(p0);
     return true;
   }
   const Model model = prepare_model(plan_, p0);
@@ -491,7 +526,7 @@ bool Runner::prepare(double p0, Summary& summary) {
     if (plan_.options.stop_due(s, step0)) {
       results->flush();
       save(ckpt, world.state(), {}, timer);
-      throw Interrupted(summary.name + ": stopped at step " + std::to_string(s) + " (--stop-after)");
+      throw Interrupted(summary.name + ": stopped at step " + std::to_string(s) + " (" + Options::stop_reason() + "), checkpoint written");
     }
   }
   State& st = world.state();
@@ -544,8 +579,54 @@ struct History {
   }
 };
 
+Summary Runner::test_summary(const TestSpec& test, const State& state, CheckpointExtra& extra) const {
+  Summary summary;
+  summary.name = test.name;
+  CheckpointExtra sample_extra;
+  read_checkpoint(sample_path(test.p0), &sample_extra);
+  summary.e0 = sample_extra.doubles["e0"].at(0);
+  summary.z0 = sample_extra.doubles["Z"].at(0);
+  const bool complete = extra.integers.count("complete") && extra.integers["complete"].at(0) == 1;
+  summary.status = complete ? "done (earlier run)" : "interrupted";
+  History history;
+  history.load(extra);
+  summary.steps = state.clock.step;
+  summary.wall = extra.doubles["wall_time"].at(0);
+  if (!history.eps1.empty()) {
+    const auto peak = std::max_element(history.q.begin(), history.q.end()) - history.q.begin();
+    summary.peak_eta = history.q[peak] / history.p[peak];
+    summary.peak_strain = history.eps1[peak];
+    summary.final_eta = history.q.back() / history.p.back();
+    summary.final_e = history.e.back();
+    summary.final_p = history.p.back();
+    summary.final_strain = history.eps1.back();
+  }
+  return summary;
+}
+
+Summary Runner::test_summary_on_disk(const TestSpec& test) const {
+  const fs::path ckpt = plan_.out / (test.name + ".checkpoint.h5");
+  Summary summary;
+  summary.name = test.name;
+  if (!fs::exists(ckpt) || !fs::exists(sample_path(test.p0))) return summary;  // "not run"
+  CheckpointExtra extra;
+  const State state = read_checkpoint(ckpt, &extra);
+  return test_summary(test, state, extra);
+}
+
+bool Runner::ensure_sample(double p0) {
+  if (fs::exists(sample_path(p0))) return true;
+  if (const double from = plan_.chained_from(p0); from > 0.0 && !ensure_sample(from)) return false;
+  Summary summary;
+  return prepare(p0, summary);
+}
+
 void Runner::shear(const TestSpec& test, Summary& summary) {
   summary.name = test.name;
+  FileLock job;
+  if (!job.try_lock(plan_.out / ".locks" / (test.name + ".lock"), FileLock::Mode::exclusive))
+    throw std::runtime_error("running in another process (" + FileLock::holder(plan_.out / ".locks" / (test.name + ".lock")) +
+                             "); not started twice");
   const fs::path ckpt = plan_.out / (test.name + ".checkpoint.h5");
   const fs::path path = plan_.out / (test.name + ".h5");
   const ShearConfig& h = plan_.config.shear;
@@ -565,19 +646,7 @@ void Runner::shear(const TestSpec& test, Summary& summary) {
     state = read_checkpoint(ckpt, &extra);
     timer.before = extra.doubles["wall_time"].at(0);
     if (extra.integers.count("complete") && extra.integers["complete"].at(0) == 1) {
-      summary.status = "done (earlier run)";
-      history.load(extra);
-      summary.steps = state.clock.step;
-      summary.wall = timer.before;
-      if (!history.eps1.empty()) {
-        const auto peak = std::max_element(history.q.begin(), history.q.end()) - history.q.begin();
-        summary.peak_eta = history.q[peak] / history.p[peak];
-        summary.peak_strain = history.eps1[peak];
-        summary.final_eta = history.q.back() / history.p.back();
-        summary.final_e = history.e.back();
-        summary.final_p = history.p.back();
-        summary.final_strain = history.eps1.back();
-      }
+      summary = test_summary(test, state, extra);
       return;
     }
     history.load(extra);
@@ -666,7 +735,7 @@ void Runner::shear(const TestSpec& test, Summary& summary) {
     if (plan_.options.stop_due(s, step0)) {
       results->flush();
       save(ckpt, st, history.save(), timer);
-      throw Interrupted(test.name + ": stopped at step " + std::to_string(s) + " (--stop-after)");
+      throw Interrupted(test.name + ": stopped at step " + std::to_string(s) + " (" + Options::stop_reason() + "), checkpoint written");
     }
     if (progress_due()) {
       last_progress = Clock::now();
@@ -796,17 +865,51 @@ Plan make_plan(Config config_in, const Options& options) {
 }
 
 // The files a run writes into the output directory.
-std::vector<fs::path> run_files(const Plan& plan) {
-  std::vector<fs::path> files{plan.out / "index.csv", plan.out / "samples.csv"};
-  for (double p0 : plan.p0) {
-    const std::string tag = p0_tag(p0);
+// The files a run writes into the output directory: all of them, or (selected) those of the
+// selected tasks (the shared index.csv and samples.csv are merged, never replaced whole).
+std::vector<fs::path> run_files(const Plan& plan, const std::vector<char>& run_prep, const std::vector<char>& run_test,
+                                bool selected) {
+  std::vector<fs::path> files;
+  if (!selected) files = {plan.out / "index.csv", plan.out / "samples.csv"};
+  for (std::size_t k = 0; k < plan.p0.size(); ++k) {
+    if (selected && !run_prep[k]) continue;
+    const std::string tag = p0_tag(plan.p0[k]);
     for (const char* f : {"sample-", "prepare-"}) files.push_back(plan.out / (f + tag + ".h5"));
     files.push_back(plan.out / ("prepare-" + tag + ".xdmf"));
     files.push_back(plan.out / ("prepare-" + tag + ".checkpoint.h5"));
   }
-  for (const TestSpec& t : plan.config.tests)
-    for (const char* ext : {".h5", ".xdmf", ".checkpoint.h5", ".png"}) files.push_back(plan.out / (t.name + ext));
+  for (std::size_t k = 0; k < plan.config.tests.size(); ++k) {
+    if (selected && !run_test[k]) continue;
+    for (const char* ext : {".h5", ".xdmf", ".checkpoint.h5", ".png"})
+      files.push_back(plan.out / (plan.config.tests[k].name + ext));
+  }
   return files;
+}
+
+// Parses --task values (K, A-B, K,L,...) into sorted distinct task indices below n; returns the
+// message of the first bad value, or "" when all are good.
+std::string parse_tasks(const std::vector<std::string>& specs, std::size_t n, std::vector<std::size_t>& tasks) {
+  const auto index = [&](const std::string& text, std::size_t& v) {
+    if (text.empty() || text.find_first_not_of("0123456789") != std::string::npos || text.size() > 9) return false;
+    v = std::stoul(text);
+    return true;
+  };
+  const std::string allowed = "allowed: indices 0-" + std::to_string(n - 1) + " of --list, as K, A-B or K,L,...";
+  for (const std::string& spec : specs) {
+    std::stringstream items(spec);
+    for (std::string item; std::getline(items, item, ',');) {
+      const std::size_t dash = item.find('-');
+      std::size_t a = 0, b = 0;
+      const bool ok = dash == std::string::npos ? index(item, a) && index(item, b)
+                                                : index(item.substr(0, dash), a) && index(item.substr(dash + 1), b);
+      if (!ok || a > b) return "= " + item + ": not an index or range; " + allowed;
+      if (b >= n) return "= " + item + ": out of range (the campaign has " + std::to_string(n) + " tasks); " + allowed;
+      for (std::size_t k = a; k <= b; ++k) tasks.push_back(k);
+    }
+  }
+  std::sort(tasks.begin(), tasks.end());
+  tasks.erase(std::unique(tasks.begin(), tasks.end()), tasks.end());
+  return "";
 }
 
 // Writes `name` in the output directory through a temporary file renamed over it, so a reader
@@ -814,7 +917,7 @@ std::vector<fs::path> run_files(const Plan& plan) {
 template <class Write>
 void write_replacing(const Plan& plan, const std::string& name, Write write) {
   const fs::path path = plan.out / name;
-  const fs::path tmp = plan.out / (name + ".tmp");
+  const fs::path tmp = plan.out / (name + ".tmp" + std::to_string(::getpid()));
   {
     std::ofstream out(tmp);
     write(out);
@@ -900,6 +1003,105 @@ static int script_main(const std::string& command, int argc, const char* const* 
   return WIFEXITED(status) ? WEXITSTATUS(status) : 1;
 }
 
+// Reads and plans a config file for a subcommand; throws ConfigError.
+static Plan plan_from_file(const std::string& path, const Options& options) {
+  std::ifstream in(path);
+  if (!in || fs::is_directory(path)) throw ConfigError(path + ": cannot read the configuration file");
+  std::ostringstream buffer;
+  buffer << in.rdbuf();
+  return make_plan(parse_config(buffer.str(), path), options);
+}
+
+// `triaxial slurm CONFIG --out DIR ...`: the campaign as Slurm job arrays (slurm.hpp).
+static int slurm_main(int argc, const char* const* argv, std::ostream& out, std::ostream& err) {
+  SlurmCampaign c;
+  std::string config, dir;
+  bool submit = false;
+  CLI::App app{"sandcell triaxial slurm: a campaign as Slurm job arrays (preparations, tests, analysis)"};
+  app.add_option("config", config, "TOML configuration of the campaign")->required();
+  app.add_option("--out", dir, "output directory of the campaign (scripts in DIR/slurm)")->required();
+  app.add_option("--cpus-per-task", c.cpus_per_task, "CPUs (threads) of each task")->check(CLI::Range(1, 4096));
+  app.add_option("--time", c.time, "time limit of each task, HH:MM:SS or D-HH:MM:SS (default 24:00:00)");
+  app.add_option("--partition", c.partition, "partition (default: the cluster's)");
+  app.add_option("--max-running", c.max_running, "tasks of an array running at once (0: no limit)")->check(CLI::Range(0, 100000));
+  app.add_flag("--submit", submit, "submit the scripts with sbatch after writing them");
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::CallForHelp&) {
+    out << app.help();
+    return 0;
+  } catch (const CLI::ParseError& e) {
+    err << "triaxial slurm: " << e.what() << " (see --help)\n";
+    return 2;
+  }
+  const auto time_ok = [](const std::string& t) {
+    int d = 0, h = 0, m = 0, sec = 0;
+    char tail = 0;
+    return (std::sscanf(t.c_str(), "%d-%d:%d:%d%c", &d, &h, &m, &sec, &tail) == 4 ||
+            std::sscanf(t.c_str(), "%d:%d:%d%c", &h, &m, &sec, &tail) == 3) &&
+           d >= 0 && h >= 0 && m >= 0 && m < 60 && sec >= 0 && sec < 60;
+  };
+  if (!time_ok(c.time)) {
+    err << "triaxial slurm: --time = " << c.time << ": allowed: HH:MM:SS or D-HH:MM:SS\n";
+    return 2;
+  }
+  if (c.partition.find_first_of(" \t\n'\"$`\\") != std::string::npos) {
+    err << "triaxial slurm: --partition = " << c.partition << ": allowed: a partition name (no spaces or quotes)\n";
+    return 2;
+  }
+  Plan plan;
+  std::string text;
+  try {
+    plan = plan_from_file(config, Options{});
+    text = plan.config.text;
+  } catch (const ConfigError& e) {
+    err << "triaxial slurm: " << e.what() << '\n';
+    return 2;
+  }
+  if (plan.config.tests.size() < 2) {
+    err << "triaxial slurm: " << config << " has one test, not a campaign; run it with `triaxial " << config << "`\n";
+    return 2;
+  }
+  if (submit && std::system("command -v sbatch >/dev/null 2>&1") != 0) {
+    err << "triaxial slurm: --submit: sbatch is not on PATH (run on a Slurm login node, or leave out --submit to only write the scripts)\n";
+    return 2;
+  }
+  std::error_code ec;
+  c.out = fs::absolute(dir, ec);
+  c.config = c.out / "campaign.toml";
+  c.triaxial = fs::read_symlink("/proc/self/exe", ec);
+  c.preparations = plan.p0.size();
+  c.tests = plan.config.tests.size();
+  c.chained = plan.config.prepare.chain;
+  // The campaign's config is kept beside its results; another campaign's is not replaced.
+  if (fs::exists(c.config)) {
+    std::ifstream in(c.config);
+    std::ostringstream held;
+    held << in.rdbuf();
+    if (held.str() != text) {
+      err << "triaxial slurm: --out = " << dir << ": holds another campaign (" << c.config.string()
+          << " differs from " << config << "); allowed: another --out\n";
+      return 2;
+    }
+  }
+  try {
+    fs::create_directories(c.out);
+    if (!fs::exists(c.config)) std::ofstream(c.config) << text;
+    write_slurm_scripts(c);
+  } catch (const std::exception& e) {
+    err << "triaxial slurm: " << e.what() << '\n';
+    return 1;
+  }
+  out << "triaxial slurm: " << c.preparations << " preparation(s) " << (c.chained ? "(one chained job)" : "(array)") << ", "
+      << c.tests << " tests (array" << (c.max_running > 0 ? ", " + std::to_string(c.max_running) + " at once" : "")
+      << "), analysis; scripts in " << (c.out / "slurm").string() << "\n";
+  if (!submit) {
+    out << "submit with: " << (c.out / "slurm" / "submit.sh").string() << "\n";
+    return 0;
+  }
+  return submit_slurm_scripts(c, out, err);
+}
+
 int triaxial_main(int argc, const char* const* argv, std::ostream& out, std::ostream& err) {
   // `triaxial analyze RESULTS... [--out DIR]`: the critical-state and dilatancy analysis (analyze.py).
   if (argc >= 2 && std::string(argv[1]) == "analyze") return script_main("analyze", argc - 1, argv + 1, err);
@@ -907,6 +1109,8 @@ int triaxial_main(int argc, const char* const* argv, std::ostream& out, std::ost
   if (argc >= 2 && std::string(argv[1]) == "study") return script_main("study", argc - 1, argv + 1, err);
   // `triaxial localization RESULTS.h5... [--out DIR] [--grid G] [--whole] [--slabs K]`: strain fields between snapshots (localization.py).
   if (argc >= 2 && std::string(argv[1]) == "localization") return script_main("localization", argc - 1, argv + 1, err);
+  // `triaxial slurm CONFIG --out DIR [--submit]`: the campaign as Slurm job arrays (slurm.hpp).
+  if (argc >= 2 && std::string(argv[1]) == "slurm") return slurm_main(argc - 1, argv + 1, out, err);
   Options options;
   bool print_default = false;
   CLI::App app{"sandcell triaxial: true triaxial DEM tests in a stress-controlled periodic cell"};
@@ -925,6 +1129,10 @@ int triaxial_main(int argc, const char* const* argv, std::ostream& out, std::ost
   app.add_option("--max-axial-strain", options.max_axial_strain, "override shear.max_axial_strain (short runs)")
       ->check(CLI::Range(1e-9, 2.0));
   app.add_flag("--prepare-only", options.prepare_only, "prepare the campaign's samples and stop (no test is sheared)");
+  app.add_flag("--list", options.list, "print the campaign's tasks (preparations, then tests: index, kind, name) and exit");
+  app.add_option("--task", options.task_specs,
+                 "run only these tasks of --list: K, A-B or K,L,... (repeatable); a test finds its sample in --out or prepares it")
+      ->take_all();
   app.add_flag("--print-default", print_default, "print the embedded default configuration and exit");
   app.add_option("--stop-after", options.stop_after,
                  "stop every job after N steps with a checkpoint, as if killed (to test --resume)");
@@ -968,9 +1176,33 @@ int triaxial_main(int argc, const char* const* argv, std::ostream& out, std::ost
   plan.out = !options.out.empty() ? fs::path(options.out)
              : options.config_path.empty() ? fs::path("results/default")
                                            : fs::path("results") / fs::path(options.config_path).stem();
+  const std::size_t n_prep = plan.p0.size(), n_tasks = plan.p0.size() + plan.config.tests.size();
+  if (options.list) {  // tasks in a stable order: preparations by p0 (as prepared), then the tests
+    for (std::size_t k = 0; k < plan.p0.size(); ++k) out << k << " prepare prepare-" << p0_tag(plan.p0[k]) << '\n';
+    for (std::size_t k = 0; k < plan.config.tests.size(); ++k) out << n_prep + k << " test " << plan.config.tests[k].name << '\n';
+    return 0;
+  }
+  // --task: which tasks this process runs (all when not given).
+  std::vector<char> run_prep(n_prep, 1), run_test(plan.config.tests.size(), options.prepare_only ? 0 : 1);
+  const bool selected = !options.task_specs.empty();
+  if (selected) {
+    if (plan.config.tests.size() < 2) {
+      err << "triaxial: --task: " << plan.config.source << " has one test, not a campaign; run it without --task\n";
+      return 2;
+    }
+    std::vector<std::size_t> tasks;
+    if (std::string bad = parse_tasks(options.task_specs, n_tasks, tasks); !bad.empty()) {
+      err << "triaxial: --task " << bad << '\n';
+      return 2;
+    }
+    std::fill(run_prep.begin(), run_prep.end(), 0);
+    std::fill(run_test.begin(), run_test.end(), 0);
+    for (std::size_t t : tasks) (t < n_prep ? run_prep[t] : run_test[t - n_prep]) = 1;
+  }
 
-  // Nothing of an earlier run is replaced unless asked.
-  const std::vector<fs::path> files = run_files(plan);
+  // Nothing of an earlier run is replaced unless asked: a whole run looks at every file, a run of
+  // selected tasks at theirs.
+  const std::vector<fs::path> files = run_files(plan, run_prep, run_test, selected);
   if (!options.resume) {
     std::vector<fs::path> existing;
     for (const fs::path& f : files)
@@ -988,8 +1220,23 @@ int triaxial_main(int argc, const char* const* argv, std::ostream& out, std::ost
     err << "triaxial: --out = " << plan.out.string() << ": cannot create the directory: " << ec.message() << '\n';
     return 2;
   }
+  // One live whole run per directory; runs of selected tasks share it with each other (lock.hpp).
+  FileLock dir_lock;
+  const fs::path dir_lock_path = plan.out / ".sandcell.lock";
+  try {
+    if (!dir_lock.try_lock(dir_lock_path, selected ? FileLock::Mode::shared : FileLock::Mode::exclusive)) {
+      err << "triaxial: --out = " << plan.out.string() << ": in use by a live run (" << FileLock::holder(dir_lock_path)
+          << "); allowed: wait for it to end, stop it (it checkpoints on SIGTERM), or another --out\n";
+      return 2;
+    }
+  } catch (const std::exception& e) {
+    err << "triaxial: --out = " << plan.out.string() << ": " << e.what() << '\n';
+    return 2;
+  }
+  fs::create_directories(plan.out / ".locks", ec);
   if (options.overwrite)
     for (const fs::path& f : files) fs::remove(f, ec);
+  install_stop_handlers();
 
   Log log(out, options.progress);
   log.line("sandcell triaxial: " + plan.config.source + " -> " + plan.out.string() + ": " +
@@ -1020,37 +1267,65 @@ int triaxial_main(int argc, const char* const* argv, std::ostream& out, std::ost
   };
   // Chained preparations run in order of p0, each after the one it starts from.
   run_parallel(plan.p0.size(), plan.config.prepare.chain ? 1 : plan.config.parallel, [&](std::size_t k) {
-    if (const double from = plan.chained_from(plan.p0[k]); from > 0.0) {
-      const std::size_t before = std::find(plan.p0.begin(), plan.p0.end(), from) - plan.p0.begin();
-      if (!prepared[before]) {
-        prep[k].name = "prepare-" + p0_tag(plan.p0[k]);
+    const std::string name = "prepare-" + p0_tag(plan.p0[k]);
+    if (!run_prep[k]) return;
+    if (stop_requested()) {
+      prep[k].name = name;
+      prep[k].status = "interrupted";
+      return;
+    }
+    try {
+      // A chained preparation needs the lower sample: prepared by an earlier task, or here.
+      if (const double from = plan.chained_from(plan.p0[k]); from > 0.0 && !runner.ensure_sample(from)) {
+        prep[k].name = name;
         prep[k].status = "skipped (sample-" + p0_tag(from) + " failed)";
         return;
       }
-    }
-    try {
       prepared[k] = runner.prepare(plan.p0[k], prep[k]);
     } catch (const std::exception& e) {
+      prep[k].name = name;
       prep[k].status = dynamic_cast<const Interrupted*>(&e) ? "interrupted" : "failed";
-      failed(prep[k].name.empty() ? "prepare-" + p0_tag(plan.p0[k]) : prep[k].name, e);
+      failed(name, e);
     }
   });
-  run_parallel(options.prepare_only ? 0 : plan.config.tests.size(), plan.config.parallel, [&](std::size_t k) {
+  run_parallel(plan.config.tests.size(), plan.config.parallel, [&](std::size_t k) {
     const TestSpec& t = plan.config.tests[k];
-    const std::size_t sample = std::find(plan.p0.begin(), plan.p0.end(), t.p0) - plan.p0.begin();
     tests[k].name = t.name;
-    if (!prepared[sample]) {
+    if (!run_test[k]) return;
+    if (stop_requested()) {
+      tests[k].status = "interrupted";
+      std::lock_guard lock(failure_mutex);
+      ++interrupted;
+      return;
+    }
+    const std::size_t sample = std::find(plan.p0.begin(), plan.p0.end(), t.p0) - plan.p0.begin();
+    if (run_prep[sample] && !prepared[sample]) {  // its preparation failed in this process
       tests[k].status = "skipped (sample failed)";
       return;
     }
     try {
+      if (!runner.ensure_sample(t.p0)) {
+        tests[k].status = "skipped (sample failed)";
+        return;
+      }
       runner.shear(t, tests[k]);
     } catch (const std::exception& e) {
       tests[k].status = dynamic_cast<const Interrupted*>(&e) ? "interrupted" : "failed";
       failed(t.name, e);
     }
   });
+  // index.csv and samples.csv cover the whole campaign: what this process did, and for the rest
+  // what the directory holds (other tasks' finished samples and tests), merged under a lock.
   try {
+    FileLock index_lock;
+    index_lock.lock(plan.out / ".locks" / "index.csv.lock", FileLock::Mode::exclusive);
+    for (std::size_t k = 0; k < prep.size(); ++k)
+      if (!run_prep[k] || prep[k].status == "not run") {
+        if (fs::exists(runner.sample_path(plan.p0[k]))) prep[k] = runner.sample_summary(plan.p0[k]);
+        else prep[k].name = "prepare-" + p0_tag(plan.p0[k]);
+      }
+    for (std::size_t k = 0; k < tests.size(); ++k)
+      if (!run_test[k]) tests[k] = runner.test_summary_on_disk(plan.config.tests[k]);
     write_index(plan, prep, tests);
   } catch (const std::exception& e) {
     failed("index.csv", e);

@@ -5,11 +5,15 @@
 #include "engine/checkpoint.hpp"
 #include "config.hpp"
 #include "run.hpp"
+#include "signals.hpp"
 
 #include <doctest/doctest.h>
 #include <hdf5.h>
 
 #include <sched.h>
+#include <signal.h>
+#include <sys/wait.h>
+#include <unistd.h>
 
 #include <cmath>
 #include <cstdlib>
@@ -398,6 +402,27 @@ TEST_CASE("triaxial: the default thread count is the CPUs of the affinity mask (
   CHECK(over.code == 0);
   CHECK(over.out.find("warning: --threads 2 > the 1 CPUs this process may use") != std::string::npos);
   fs::remove_all(dir);
+}
+
+TEST_CASE("triaxial: a stop signal sets the stop request; a second one within 1 s is the same request, a later one exits at once") {
+  // In a child process, so the test runner keeps its own handlers.
+  const pid_t pid = ::fork();
+  REQUIRE(pid >= 0);
+  if (pid == 0) {
+    triaxial::clear_stop_request();
+    triaxial::install_stop_handlers();
+    ::raise(SIGUSR1);  // the first: a request, the process goes on
+    if (!triaxial::stop_requested() || triaxial::stop_signal() != SIGUSR1) ::_exit(10);
+    ::raise(SIGTERM);  // the same request delivered twice (a batch script passing it on)
+    if (triaxial::stop_signal() != SIGUSR1) ::_exit(12);
+    ::usleep(1'100'000);
+    ::raise(SIGTERM);  // a second request: out at once
+    ::_exit(11);       // not reached when the handler works
+  }
+  int status = 0;
+  REQUIRE(::waitpid(pid, &status, 0) == pid);
+  REQUIRE(WIFEXITED(status));
+  CHECK(WEXITSTATUS(status) == 128 + SIGTERM);
 }
 
 TEST_CASE("triaxial: the shipped configs parse, and default.toml is the embedded default") {

@@ -423,6 +423,25 @@ TEST_CASE("results series: append and flush survive a killed writer, reopen cuts
   CHECK(snap.open_dataset("id").read<std::uint32_t>() == s.particles.id);
 }
 
+TEST_CASE("a results file being written opens for reading with HDF5's default file locking (h5py, h5dump)") {
+  // The writer holds the file open, as a running test does. A reader with the library's default
+  // access properties (file locking on, as h5py and h5dump use) must open it and see the flushed
+  // rows; with the writer's HDF5 lock this open failed for the whole run.
+  TempDir dir("reader");
+  const fs::path path = dir.path / "run.h5";
+  ResultsFile writer = ResultsFile::create(path, "[run]\n");
+  for (int k = 0; k < 3; ++k) writer.append("step", 100.0 * k, "-");
+  writer.flush();
+  // The reader is h5py in another process (a forked child would share the parent's HDF5 state, in
+  // which the file is already open), without HDF5_USE_FILE_LOCKING set: HDF5's default locking.
+  const std::string cmd = "env -u HDF5_USE_FILE_LOCKING /usr/bin/python3 -c \"import sys, h5py; "
+                          "f = h5py.File(sys.argv[1], 'r'); sys.exit(0 if f['series/step'].shape == (3,) else 3)\" '" +
+                          path.string() + "' 2>&1";
+  CHECK(std::system(cmd.c_str()) == 0);
+  writer.append("step", 300.0, "-");  // the writer goes on
+  writer.close();
+}
+
 TEST_CASE("a config text larger than 64 KiB is stored whole") {
   TempDir dir("config");
   std::string config;
