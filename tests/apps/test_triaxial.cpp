@@ -4,6 +4,7 @@
 // and its results file holds the documented datasets.
 #include "engine/checkpoint.hpp"
 #include "config.hpp"
+#include "lock.hpp"
 #include "run.hpp"
 #include "signals.hpp"
 
@@ -423,6 +424,77 @@ TEST_CASE("triaxial: a stop signal sets the stop request; a second one within 1 
   REQUIRE(::waitpid(pid, &status, 0) == pid);
   REQUIRE(WIFEXITED(status));
   CHECK(WEXITSTATUS(status) == 128 + SIGTERM);
+}
+
+TEST_CASE("triaxial: --list, --task and the cluster subcommand: bad input exits 2 with one line, clobbering nothing") {
+  const fs::path dir = fresh_dir("tasks");
+  std::string campaign = k_small;
+  campaign.replace(campaign.find("b = 0.5"), 7, "b = [0.5, 1.0]");
+  write(dir / "campaign.toml", campaign);
+  write(dir / "single.toml", k_small);
+  const std::string c = (dir / "campaign.toml").string(), out = (dir / "out").string();
+  // --list: preparations, then tests, with stable indices; nothing written.
+  const Result list = run({c, "--list", "--out", out});
+  CHECK(list.code == 0);
+  CHECK(list.out == "0 prepare prepare-p0_100kPa\n1 test p-b0.50-p0_100kPa\n2 test p-b1.00-p0_100kPa\n");
+  CHECK(!fs::exists(out));
+  fs::create_directories(out);
+  write(dir / "out" / "index.csv", "results of an earlier run\n");
+  struct Case {
+    std::vector<std::string> args;
+    const char* expect;
+  };
+  const std::string single = (dir / "single.toml").string();
+  const Case cases[] = {
+      {{c, "--out", out, "--task", "3"}, "--task = 3: out of range (the campaign has 3 tasks)"},
+      {{c, "--out", out, "--task", "1-x"}, "--task = 1-x: not an index or range"},
+      {{c, "--out", out, "--task", "2-1"}, "--task = 2-1: not an index or range"},
+      {{single, "--out", out, "--task", "0"}, "has one test, not a campaign"},
+      {{"slurm", single, "--out", out}, "has one test, not a campaign"},
+      {{"slurm", c, "--out", out, "--time", "90"}, "--time = 90: allowed: HH:MM:SS or D-HH:MM:SS"},
+  };
+  for (const Case& k : cases) {
+    const Result r = run(k.args);
+    INFO(r.err);
+    CHECK(r.code == 2);
+    CHECK(r.err.find(k.expect) != std::string::npos);
+    CHECK(std::count(r.err.begin(), r.err.end(), '\n') == 1);
+    CHECK(read(dir / "out" / "index.csv") == "results of an earlier run\n");
+  }
+  // --submit without sbatch on PATH.
+  const char* path_env = std::getenv("PATH");
+  const std::string saved = path_env ? path_env : "";
+  ::setenv("PATH", "/nonexistent", 1);
+  const Result no_sbatch = run({"slurm", c, "--out", (dir / "cluster").string(), "--submit"});
+  ::setenv("PATH", saved.c_str(), 1);
+  CHECK(no_sbatch.code == 2);
+  CHECK(no_sbatch.err.find("--submit: sbatch is not on PATH") != std::string::npos);
+  CHECK(!fs::exists(dir / "cluster"));
+  // A directory held by a live run (its lock taken here as another run would hold it): refused,
+  // for --resume and --overwrite alike, and nothing is deleted.
+  {
+    triaxial::FileLock live;
+    REQUIRE(live.try_lock(dir / "out" / ".sandcell.lock", triaxial::FileLock::Mode::exclusive));
+    for (const char* mode : {"--resume", "--overwrite"}) {
+      const Result r = run({c, "--out", out, mode});
+      INFO(r.err);
+      CHECK(r.code == 2);
+      CHECK(r.err.find("in use by a live run (PID " + std::to_string(::getpid())) != std::string::npos);
+      CHECK(read(dir / "out" / "index.csv") == "results of an earlier run\n");
+    }
+  }
+  // Without --submit the scripts are written for a person to read: the test array's size and
+  // its task offset, the chained or arrayed preparation, the dependencies.
+  const Result scripts = run({"slurm", c, "--out", (dir / "cluster").string(), "--max-running", "4"});
+  INFO(scripts.err);
+  REQUIRE(scripts.code == 0);
+  const std::string tests = read(dir / "cluster" / "slurm" / "tests.sbatch");
+  CHECK(tests.find("#SBATCH --array=0-1%4") != std::string::npos);
+  CHECK(tests.find("--task \"$((1 + SLURM_ARRAY_TASK_ID))\"") != std::string::npos);
+  CHECK(read(dir / "cluster" / "slurm" / "prepare.sbatch").find("#SBATCH --array=0-0%4") != std::string::npos);
+  CHECK(read(dir / "cluster" / "slurm" / "submit.sh").find("--dependency=afterok:") != std::string::npos);
+  CHECK(read(dir / "cluster" / "campaign.toml") == campaign);
+  fs::remove_all(dir);
 }
 
 TEST_CASE("triaxial: the shipped configs parse, and default.toml is the embedded default") {
