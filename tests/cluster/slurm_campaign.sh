@@ -119,6 +119,14 @@ done
 sleep 0.5
 # scancel may report the job "already completing": the task checkpoints and requeues within ms.
 scancel --signal=TERM --full "$target" > /dev/null 2>&1
+# Slurm holds a requeued job back for about two minutes (BeginTime); let it start now.
+for _ in $(seq 300); do
+  if [ "$(squeue -h -j "$target" -o %r 2> /dev/null)" = "BeginTime" ]; then
+    scontrol update JobId="$target" StartTime=now || fail "scontrol update JobId=$target StartTime=now"
+    break
+  fi
+  sleep 0.1
+done
 wait_idle 300
 log="$tmp/stopped/slurm/logs/tests-${target}.out"
 grep -q "(SIG[A-Z0-9]*), checkpoint written" "$log" || fail "task $target did not checkpoint on the signal: $(cat "$log")"
