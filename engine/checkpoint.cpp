@@ -3,6 +3,8 @@
 #include "engine/field_io.hpp"
 #include "engine/version.hpp"
 
+#include <cerrno>
+#include <cstring>
 #include <stdexcept>
 
 namespace sandcell {
@@ -87,6 +89,16 @@ void write_contents(h5::File& file, const State& state, const CheckpointExtra& e
 
 }  // namespace
 
+// An upper bound of a checkpoint's size: every registry array at most 3 doubles an element (24
+// bytes) in 11 particle and 10 contact arrays, the extras, and 1 MiB of HDF5 metadata.
+static std::uint64_t checkpoint_bytes(const State& state, const CheckpointExtra& extra) {
+  std::uint64_t bytes = (1u << 20) + 24u * 11u * state.particles.size() + 24u * 10u * state.contacts.size();
+  for (const auto& kv : extra.doubles) bytes += 8 * kv.second.size() + 256;
+  for (const auto& kv : extra.integers) bytes += 8 * kv.second.size() + 256;
+  for (const auto& kv : extra.strings) bytes += kv.second.size() + 256;
+  return bytes;
+}
+
 void write_checkpoint(const std::filesystem::path& path, const State& state, const CheckpointExtra& extra) {
   check_sizes(state);
   for (const auto& kv : extra.doubles) check_key(kv.first, "doubles");
@@ -96,14 +108,25 @@ void write_checkpoint(const std::filesystem::path& path, const State& state, con
     throw std::runtime_error("write_checkpoint: " + path.string() + " is a directory");
 
   const std::filesystem::path tmp = io::temporary_path(path);
+  errno = 0;
   try {
+    // A full disk is found before HDF5 writes (it may crash closing a file whose write failed);
+    // a write that fails anyway leaves the file unclosed and removed.
+    io::require_free_space(tmp, checkpoint_bytes(state, extra));
     h5::File file = h5::File::create(tmp);
-    write_contents(file, state, extra);
-    file.flush();
-    file.close();
+    try {
+      write_contents(file, state, extra);
+      file.flush();
+      file.close();
+    } catch (...) {
+      file.abandon();
+      throw;
+    }
   } catch (const std::exception& e) {
+    const int cause = errno;  // of the failed write, when the system said why
     std::filesystem::remove(tmp, ec);
-    throw std::runtime_error("write_checkpoint: " + path.string() + " not written: " + e.what());
+    throw std::runtime_error("write_checkpoint: " + path.string() + " not written: " + e.what() +
+                             (cause != 0 ? std::string(" [") + std::strerror(cause) + "]" : std::string()));
   }
   try {
     io::commit_file(tmp, path);

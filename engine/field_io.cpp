@@ -5,6 +5,7 @@
 #include <stdexcept>
 
 #include <fcntl.h>
+#include <sys/statvfs.h>
 #include <unistd.h>
 
 namespace sandcell::io {
@@ -26,6 +27,42 @@ std::filesystem::path temporary_path(const std::filesystem::path& path) {
   std::filesystem::path tmp = path;
   tmp += ".tmp";
   return tmp;
+}
+
+void write_bytes(const std::filesystem::path& path, const std::vector<unsigned char>& bytes) {
+  const int fd = ::open(path.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
+  if (fd < 0) throw std::runtime_error(path.string() + ": cannot create the file (" + std::strerror(errno) + ")");
+  std::size_t done = 0;
+  while (done < bytes.size()) {
+    const ssize_t n = ::write(fd, bytes.data() + done, bytes.size() - done);
+    if (n < 0 && errno == EINTR) continue;
+    if (n <= 0) {
+      const std::string why = n < 0 ? std::strerror(errno) : "nothing written";
+      ::close(fd);
+      std::error_code ec;
+      std::filesystem::remove(path, ec);
+      throw std::runtime_error(path.string() + ": cannot write " + std::to_string(bytes.size()) + " bytes (" + why + ")");
+    }
+    done += static_cast<std::size_t>(n);
+  }
+  if (::close(fd) != 0) {
+    const std::string why = std::strerror(errno);
+    std::error_code ec;
+    std::filesystem::remove(path, ec);
+    throw std::runtime_error(path.string() + ": cannot close the file (" + why + ")");
+  }
+}
+
+void require_free_space(const std::filesystem::path& path, std::uint64_t bytes) {
+  constexpr std::uint64_t k_reserve = 4u << 20;
+  struct statvfs fs {};
+  const std::filesystem::path where = std::filesystem::exists(path) ? path : path.parent_path();
+  if (::statvfs(where.empty() ? "." : where.c_str(), &fs) != 0) return;  // unknown: let the write tell
+  const std::uint64_t free = static_cast<std::uint64_t>(fs.f_bavail) * fs.f_frsize;
+  if (free < bytes + k_reserve)
+    throw std::runtime_error(path.string() + ": disk full: " + std::to_string(free >> 10) + " KiB free on its file system, " +
+                             "writing needs about " + std::to_string((bytes + k_reserve) >> 10) +
+                             " KiB (with a 4 MiB reserve); the file is kept as of its last flush");
 }
 
 void commit_file(const std::filesystem::path& tmp, const std::filesystem::path& path) {

@@ -68,6 +68,17 @@ void read_field(const h5::Group& group, const FieldInfo& info, std::vector<T>& v
   d.read(L::scalar, values.data(), n * L::width);
 }
 
+
+/// Writes `bytes` to `path` (created or truncated) with plain POSIX writes; a full disk (ENOSPC),
+/// an I/O error or a permission problem is a std::runtime_error naming the file and the cause, and
+/// leaves no partial file behind.
+void write_bytes(const std::filesystem::path& path, const std::vector<unsigned char>& bytes);
+
+/// Throws std::runtime_error "<path>: disk full ..." unless the file system holding `path` (or its
+/// directory) has `bytes` plus a reserve of 4 MiB free. Checked before HDF5 writes a file in place:
+/// HDF5 1.10 may crash closing a file whose write failed, and leave it unreadable.
+void require_free_space(const std::filesystem::path& path, std::uint64_t bytes);
+
 /// Makes a finished temporary file durable and puts it in place: fsync(tmp), rename(tmp, path),
 /// fsync of the directory. Either path then holds the new file, or (on any failure, which throws
 /// std::runtime_error) the old one is untouched; the temporary is removed on failure.

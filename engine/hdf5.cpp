@@ -403,6 +403,25 @@ File File::create(const std::filesystem::path& path) {
   return File(std::move(f), path);
 }
 
+File File::create_in_memory(const std::filesystem::path& path) {
+  silence_hdf5();
+  Handle fapl = access_properties(path.string());
+  if (H5Pset_fapl_core(fapl.get(), 64 << 10, 1) < 0) throw_error(path.string(), "", "cannot set up an in-memory file");
+  Handle f(H5Fcreate(path.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, fapl.get()));
+  if (!f.valid()) throw_error(path.string(), "", "cannot create the file in memory");
+  return File(std::move(f), path);
+}
+
+std::vector<unsigned char> File::image() {
+  flush();
+  const ssize_t size = H5Fget_file_image(handle_.get(), nullptr, 0);
+  if (size < 0) throw_error(path_.string(), "", "cannot get the file image");
+  std::vector<unsigned char> bytes(static_cast<std::size_t>(size));
+  if (H5Fget_file_image(handle_.get(), bytes.data(), bytes.size()) != size)
+    throw_error(path_.string(), "", "cannot get the file image");
+  return bytes;
+}
+
 File File::open(const std::filesystem::path& path, Mode mode) {
   silence_hdf5();
   std::error_code ec;

@@ -104,6 +104,10 @@ class Node {
   /// Throws std::runtime_error "<file>: <object>: <what>", with HDF5's innermost message if any.
   [[noreturn]] void fail(std::string_view what) const;
 
+  /// Forgets the object without closing it: after a failed write (a full disk) HDF5 may crash
+  /// closing objects of that file, so they are left to the process's exit.
+  void abandon() noexcept { handle_.release(); }
+
  protected:
   Node() = default;
   Node(Handle handle, std::string file, std::string path)
@@ -193,6 +197,9 @@ class File {
   enum class Mode { read, read_write };
   /// Creates (truncates) a file.
   static File create(const std::filesystem::path& path);
+  /// Creates a file in memory only (HDF5's core driver, no backing store); image() returns its bytes.
+  /// `path` names it in messages.
+  static File create_in_memory(const std::filesystem::path& path);
   /// Opens an existing file; throws if it is missing or not an HDF5 file.
   static File open(const std::filesystem::path& path, Mode mode);
 
@@ -209,6 +216,10 @@ class File {
   void flush();
   /// Closes the file; throws if HDF5 reports an error (e.g. objects still open).
   void close();
+  /// The bytes of the whole file as it would be on disk (flushes first). For files in memory.
+  std::vector<unsigned char> image();
+  /// Forgets the file without closing it (see Node::abandon): what was flushed stays on disk.
+  void abandon() noexcept { handle_.release(); }
 
  private:
   File(Handle handle, std::filesystem::path path) : handle_(std::move(handle)), path_(std::move(path)) {}

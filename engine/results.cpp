@@ -5,6 +5,8 @@
 #include "engine/hdf5.hpp"
 #include "engine/version.hpp"
 
+#include <cerrno>
+#include <cstring>
 #include <algorithm>
 #include <array>
 #include <charconv>
@@ -65,7 +67,18 @@ struct ResultsFile::Impl {
   // Open series datasets, so an append does not look the dataset up again.
   std::map<std::string, Series, std::less<>> open_series;
 
+  std::uint64_t pending = 0;  // bytes of series rows appended since the last flush
+
   explicit Impl(h5::File f) : file(std::move(f)) {}
+
+  // After a failed write every handle is dropped unclosed (h5::File::abandon): the file on disk
+  // stays as of its last flush.
+  void abandon() noexcept {
+    for (auto& [name, s] : open_series) s.dataset.abandon();
+    series.abandon();
+    snapshots.abandon();
+    file.abandon();
+  }
 
   Series& find_series(std::string_view name, std::size_t width, std::string_view units) {
     auto it = open_series.find(name);
@@ -101,6 +114,23 @@ struct ResultsFile::Impl {
 };
 
 ResultsFile::ResultsFile(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
+
+template <class Fn>
+void ResultsFile::guarded(Fn&& fn) {
+  check_open(impl_.get());
+  errno = 0;
+  try {
+    fn();
+  } catch (const std::invalid_argument&) {
+    throw;  // a caller's mistake, nothing written: the file stays usable
+  } catch (const std::exception& e) {
+    const int cause = errno;  // of the failed write, when the system said why
+    impl_->abandon();
+    impl_.reset();
+    if (cause == 0 || std::string_view(e.what()).find("disk full") != std::string_view::npos) throw;
+    throw std::runtime_error(std::string(e.what()) + " [" + std::strerror(cause) + "]");
+  }
+}
 ResultsFile::ResultsFile(ResultsFile&&) noexcept = default;
 ResultsFile& ResultsFile::operator=(ResultsFile&& other) noexcept {
   if (this != &other) {
@@ -123,6 +153,7 @@ ResultsFile::~ResultsFile() {
 
 ResultsFile ResultsFile::create(const std::filesystem::path& path, std::string_view config_text,
                                 const std::map<std::string, std::string>& attributes) {
+  io::require_free_space(path, config_text.size() + (64u << 10));
   auto impl = std::make_unique<Impl>(h5::File::create(path));
   h5::Group root = impl->file.root();
   root.set_string("format", k_format);
@@ -133,6 +164,8 @@ ResultsFile ResultsFile::create(const std::filesystem::path& path, std::string_v
   for (const auto& [name, value] : attributes) root.set_string(name, value);
   impl->series = root.create_group("series");
   impl->snapshots = root.create_group("snapshots");
+  // On disk from the start: a run killed before its first flush of rows leaves a readable file.
+  impl->file.flush();
   return ResultsFile(std::move(impl));
 }
 
@@ -168,8 +201,11 @@ ResultsFile ResultsFile::reopen(const std::filesystem::path& path, std::uint64_t
 void ResultsFile::append(std::string_view name, std::span<const double> values, std::string_view units) {
   check_open(impl_.get());
   if (values.empty()) throw std::invalid_argument("ResultsFile: empty row for series '" + std::string(name) + "'");
-  Impl::Series& s = impl_->find_series(name, values.size(), units);
-  s.dataset.append_row(h5::Scalar::f64, values.data(), values.size());
+  guarded([&] {
+    Impl::Series& s = impl_->find_series(name, values.size(), units);
+    s.dataset.append_row(h5::Scalar::f64, values.data(), values.size());
+    impl_->pending += 8 * values.size();
+  });
 }
 
 void ResultsFile::append(std::string_view name, double value, std::string_view units) {
@@ -177,7 +213,12 @@ void ResultsFile::append(std::string_view name, double value, std::string_view u
 }
 
 void ResultsFile::write_snapshot(const State& state) {
-  check_open(impl_.get());
+  guarded([&] { write_snapshot_unguarded(state); });
+}
+
+void ResultsFile::write_snapshot_unguarded(const State& state) {
+  // Every snapshot field is at most 3 doubles a particle: 14 numbers of 8 bytes in all.
+  io::require_free_space(impl_->file.path(), 14 * 8 * state.particles.size() + impl_->pending + (64u << 10));
   const std::string name = snapshot_name(state.clock.step);
   if (impl_->snapshots.has(name)) impl_->snapshots.remove(name);
   h5::Group g = impl_->snapshots.create_group(name);
@@ -200,18 +241,20 @@ void ResultsFile::write_snapshot(const State& state) {
 }
 
 void ResultsFile::set_attribute(std::string_view group, std::string_view name, std::string_view value) {
-  check_open(impl_.get());
-  impl_->file.root().require_group(group).set_string(name, value);
+  guarded([&] { impl_->file.root().require_group(group).set_string(name, value); });
 }
 
 void ResultsFile::set_attribute(std::string_view group, std::string_view name, double value) {
-  check_open(impl_.get());
-  impl_->file.root().require_group(group).set_value<double>(name, value);
+  guarded([&] { impl_->file.root().require_group(group).set_value<double>(name, value); });
 }
 
 void ResultsFile::flush() {
-  check_open(impl_.get());
-  impl_->file.flush();
+  guarded([&] {
+    // The rows since the last flush and HDF5's metadata (a generous 64 KiB).
+    io::require_free_space(impl_->file.path(), impl_->pending + (64u << 10));
+    impl_->file.flush();
+    impl_->pending = 0;
+  });
 }
 
 void ResultsFile::close() {
@@ -222,7 +265,13 @@ void ResultsFile::close() {
   impl->series = h5::Group();
   impl->snapshots = h5::Group();
   const std::filesystem::path path = impl->file.path();
-  impl->file.close();
+  try {
+    io::require_free_space(path, impl->pending + (64u << 10));
+    impl->file.close();
+  } catch (...) {
+    impl->file.abandon();
+    throw;
+  }
   write_xdmf(path);
 }
 

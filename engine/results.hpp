@@ -12,8 +12,10 @@
 //                           `units`; attributes step, time (s), cell_length (3 doubles, m)
 // Other groups (e.g. one per test of a campaign) may be added with set_attribute().
 //
-// Crash behaviour: flush() pushes everything written so far to the operating system, so a killed
-// run leaves a file readable up to its last flush; a run resumed from a checkpoint reopen()s the
+// Crash behaviour: create() and flush() push everything written so far to the operating system, so
+// a killed run leaves a file readable up to its last flush; before a flush or a snapshot the free
+// space is checked (io::require_free_space), and a write that fails anyway (a full disk, an I/O
+// error) drops the file's handles unclosed, leaving the file as of its last flush; a run resumed from a checkpoint reopen()s the
 // file and cuts it back to the checkpoint's step, so no sample is duplicated.
 #include "engine/state.hpp"
 
@@ -71,6 +73,12 @@ class ResultsFile {
   bool is_open() const;
 
  private:
+  // Runs fn; on a failure other than a caller's mistake (std::invalid_argument), drops the file's
+  // handles unclosed and rethrows: the file on disk stays as of its last flush.
+  template <class Fn>
+  void guarded(Fn&& fn);
+  void write_snapshot_unguarded(const State& state);
+
   struct Impl;
   explicit ResultsFile(std::unique_ptr<Impl> impl);
   std::unique_ptr<Impl> impl_;

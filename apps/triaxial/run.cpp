@@ -27,6 +27,7 @@
 #include <cerrno>
 #include <cstdio>
 #include <cstdlib>
+#include <cstring>
 #include <iostream>
 #include <filesystem>
 #include <fstream>
@@ -918,9 +919,14 @@ template <class Write>
 void write_replacing(const Plan& plan, const std::string& name, Write write) {
   const fs::path path = plan.out / name;
   const fs::path tmp = plan.out / (name + ".tmp" + std::to_string(::getpid()));
-  {
-    std::ofstream out(tmp);
-    write(out);
+  std::ofstream out(tmp);
+  write(out);
+  out.close();
+  if (!out) {  // a full disk or an I/O error: the earlier file stays, no empty one replaces it
+    const std::string why = std::strerror(errno);
+    std::error_code ec;
+    fs::remove(tmp, ec);
+    throw std::runtime_error(path.string() + ": not written (" + why + "); the earlier file is kept");
   }
   fs::rename(tmp, path);
 }

@@ -497,6 +497,29 @@ TEST_CASE("triaxial: --list, --task and the cluster subcommand: bad input exits 
   fs::remove_all(dir);
 }
 
+TEST_CASE("triaxial: a full disk is exit 1 naming the file, with no crash and no empty index") {
+  // --out on a 2 MiB tmpfs (root only): before, a segmentation fault inside HDF5's close on the
+  // error path, an unreadable results file and 0-byte index.csv/samples.csv.
+  const fs::path dir = fresh_dir("full");
+  const fs::path mnt = dir / "tmpfs";
+  fs::create_directories(mnt);
+  if (::geteuid() != 0 || std::system(("mount -t tmpfs -o size=2m tmpfs '" + mnt.string() + "' 2>/dev/null").c_str()) != 0) {
+    MESSAGE("not root (or no tmpfs): the full-disk run is not exercised (tests/engine/test_io.cpp injects write failures)");
+    return;
+  }
+  write(dir / "small.toml", k_small);
+  const Result r = run({(dir / "small.toml").string(), "--out", (mnt / "out").string()});
+  const std::string index = read(mnt / "out" / "index.csv");
+  std::system(("umount '" + mnt.string() + "'").c_str());
+  INFO(r.out, r.err);
+  CHECK(r.code == 1);
+  CHECK(r.out.find("disk full") != std::string::npos);
+  CHECK(r.out.find((mnt / "out").string()) != std::string::npos);
+  CHECK(index.find("prepare") == std::string::npos);  // the index: a header and the test's row
+  CHECK(index.find("p-b0.50-p0_100kPa") != std::string::npos);
+  fs::remove_all(dir);
+}
+
 TEST_CASE("triaxial: the shipped configs parse, and default.toml is the embedded default") {
   const fs::path dir = fs::path(SANDCELL_SOURCE_DIR) / "apps/triaxial/configs";
   CHECK(read(dir / "default.toml") == triaxial::k_default_config);

@@ -5,6 +5,7 @@
 // the check independent of the code under test.
 #include "engine/build_arch.hpp"
 #include "engine/checkpoint.hpp"
+#include "engine/field_io.hpp"
 #include "engine/hdf5.hpp"
 #include "engine/results.hpp"
 #include "engine/version.hpp"
@@ -20,10 +21,13 @@
 #include <filesystem>
 #include <fstream>
 #include <limits>
+#include <optional>
 #include <sstream>
 #include <string>
 #include <vector>
 
+#include <signal.h>
+#include <sys/resource.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -440,6 +444,146 @@ TEST_CASE("a results file being written opens for reading with HDF5's default fi
   CHECK(std::system(cmd.c_str()) == 0);
   writer.append("step", 300.0, "-");  // the writer goes on
   writer.close();
+}
+
+namespace {
+// In a child process: a ResultsFile whose writes start failing (injected: RLIMIT_FSIZE makes every
+// write beyond `limit` bytes fail with EFBIG, as a full disk fails with ENOSPC). Rows of `width`
+// values are appended and flushed until a write throws. Exit status: 0 it threw and the process
+// survived (its flushed row count in `rows_file`), 1 it never threw, 2 it threw at create.
+int fill_until_failure(const fs::path& path, const fs::path& rows_file, rlim_t limit, std::size_t width) {
+  const pid_t child = ::fork();
+  REQUIRE(child >= 0);
+  if (child == 0) {
+    ::signal(SIGXFSZ, SIG_IGN);  // the failed write returns EFBIG instead of killing the process
+    if (limit != RLIM_INFINITY) {
+      const rlimit r{limit, limit};
+      ::setrlimit(RLIMIT_FSIZE, &r);
+    }
+    std::optional<ResultsFile> f;
+    try {
+      f.emplace(ResultsFile::create(path, "[run]\n"));
+    } catch (const std::exception&) {
+      ::_exit(2);
+    }
+    std::vector<double> row(width, 1.0);
+    long flushed = 0;
+    try {
+      for (long k = 0; k < 100000; ++k) {
+        row[0] = static_cast<double>(k);
+        f->append("row", row, "-");
+        if (k % 4 == 3) {
+          f->flush();
+          flushed = k + 1;
+        }
+      }
+    } catch (const std::exception& e) {
+      f.reset();  // destroying a failed file must not crash
+      std::ofstream(rows_file) << flushed << '\n' << e.what() << '\n';
+      ::_exit(0);
+    }
+    ::_exit(1);
+  }
+  int status = 0;
+  REQUIRE(::waitpid(child, &status, 0) == child);
+  REQUIRE(WIFEXITED(status));  // not a signal: no crash
+  return WEXITSTATUS(status);
+}
+}  // namespace
+
+TEST_CASE("a results file whose writes fail throws naming the file and the cause, and does not crash") {
+  // Injected failure (RLIMIT_FSIZE: writes past the limit fail with EFBIG, as a full disk fails
+  // with ENOSPC), so it runs as any user. A write failing inside HDF5 may leave the file
+  // inconsistent; the free-space check below keeps a real full disk from getting that far.
+  TempDir dir("efbig");
+  const fs::path path = dir.path / "run.h5", rows = dir.path / "rows.txt";
+  REQUIRE(fill_until_failure(path, rows, 256 << 10, 512) == 0);
+  std::ifstream in(rows);
+  long flushed = -1;
+  in >> flushed;
+  std::string message;
+  std::getline(in >> std::ws, message);
+  CHECK(flushed >= 4);
+  CHECK(message.find(path.string()) != std::string::npos);
+  CHECK(message.find("File too large") != std::string::npos);
+}
+
+TEST_CASE("a full disk stops a results file at a flush, readable with every row flushed before") {
+  // A real full disk: a 6 MiB tmpfs (needs root to mount). The free-space check before each flush
+  // (a 4 MiB reserve) refuses the flush that would not fit, so HDF5 never writes into a full disk.
+  TempDir dir("enospc");
+  const fs::path mnt = dir.path / "tmpfs";
+  fs::create_directories(mnt);
+  if (::geteuid() != 0 || std::system(("mount -t tmpfs -o size=6m tmpfs '" + mnt.string() + "' 2>/dev/null").c_str()) != 0) {
+    MESSAGE("not root (or no tmpfs): the real full disk is not exercised here; the injected failure above is");
+    return;
+  }
+  const fs::path path = mnt / "run.h5", rows = dir.path / "rows.txt";
+  const int status = fill_until_failure(path, rows, RLIM_INFINITY, 512);
+  std::ifstream in(rows);
+  long flushed = -1;
+  in >> flushed;
+  std::string message;
+  std::getline(in >> std::ws, message);
+  long readable = -1;
+  try {
+    const h5::File f = h5::File::open(path, h5::File::Mode::read);
+    readable = static_cast<long>(f.root().open_group("series").open_dataset("row").read<double>().size() / 512);
+  } catch (const std::exception& e) {
+    MESSAGE(e.what());
+  }
+  std::system(("umount '" + mnt.string() + "'").c_str());
+  REQUIRE(status == 0);
+  CHECK(message.find("disk full") != std::string::npos);
+  CHECK(flushed >= 4);
+  CHECK(readable >= flushed);
+}
+
+TEST_CASE("a checkpoint write that fails (full disk) leaves the previous checkpoint and no temporary") {
+  TempDir dir("efbig_ckpt");
+  const fs::path path = dir.path / "state.h5";
+  const Model model = packing_model();
+  const State state = packing_state(model);
+  write_checkpoint(path, state);
+  const std::uintmax_t size = fs::file_size(path);
+  const pid_t child = ::fork();
+  REQUIRE(child >= 0);
+  if (child == 0) {
+    ::signal(SIGXFSZ, SIG_IGN);
+    const rlimit r{size / 2, size / 2};
+    ::setrlimit(RLIMIT_FSIZE, &r);
+    try {
+      write_checkpoint(path, state);
+    } catch (const std::exception& e) {
+      ::_exit(std::string(e.what()).find("File too large") != std::string::npos ? 0 : 3);
+    }
+    ::_exit(1);
+  }
+  int status = 0;
+  REQUIRE(::waitpid(child, &status, 0) == child);
+  REQUIRE(WIFEXITED(status));
+  CHECK(WEXITSTATUS(status) == 0);  // 1: no error, 3: an error not naming the cause
+  CHECK(first_difference(read_checkpoint(path).particles, state.particles) == "");
+  CHECK(!fs::exists(io::temporary_path(path)));
+}
+
+TEST_CASE("a results file killed before its first flush of rows opens, with its header") {
+  // The app flushes rows every flush_interval rows (10,000 steps by default); a run killed before
+  // that left a file HDF5 could not open.
+  TempDir dir("early_kill");
+  const fs::path path = dir.path / "run.h5";
+  const pid_t child = ::fork();
+  REQUIRE(child >= 0);
+  if (child == 0) {
+    ResultsFile r = ResultsFile::create(path, "[run]\n", {{"job", "early"}});
+    for (int k = 0; k < 3; ++k) r.append("step", 100.0 * k, "-");
+    ::_exit(0);  // killed: no flush, no close
+  }
+  int status = 0;
+  REQUIRE(::waitpid(child, &status, 0) == child);
+  const h5::File f = h5::File::open(path, h5::File::Mode::read);
+  CHECK(f.root().get_string("job") == "early");
+  CHECK(f.root().get_string("config") == "[run]\n");
 }
 
 TEST_CASE("a config text larger than 64 KiB is stored whole") {
