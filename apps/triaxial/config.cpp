@@ -314,6 +314,7 @@ Config parse_config(const std::string& text, const std::string& source) {
     s.integer("check_interval", p.check_interval, 1, 1'000'000'000, "must be an integer >= 1 step");
     s.integer("max_steps", p.max_steps, 1, UINT64_MAX, "must be an integer >= 1 step");
     s.boolean("chain", p.chain);
+    s.number("dt_fraction", p.dt_fraction, 1e-6, 1.0, "must be in (0, 1] (fraction of the Rayleigh time; default time.dt_fraction)");
     s.check_unknown();
   }
   std::vector<std::string> path_names = {"constant_p"};

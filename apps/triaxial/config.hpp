@@ -34,6 +34,7 @@ struct PrepareConfig {
   std::uint64_t check_interval = 1000;  // steps between convergence checks
   std::uint64_t max_steps = 5'000'000;  // give up (error) after this many steps
   bool chain = false;             // each higher p0 starts from the next lower p0's sample (false: each from the cloud)
+  double dt_fraction = 0.0;       // -, time step of the preparation / Rayleigh time (0: time.dt_fraction)
 };
 
 enum class ShearPath { constant_p, constant_sigma3, strain };
