@@ -2,7 +2,9 @@
 
 #include <toml++/toml.h>
 
+#include <algorithm>
 #include <cmath>
+#include <map>
 #include <numbers>
 #include <cstdio>
 #include <set>
@@ -428,6 +430,45 @@ Config parse_config(const std::string& text, const std::string& source) {
     throw ConfigError(source + ": shear.ramp_strain = " + num(c.shear.ramp_strain) + ": must be below shear.max_axial_strain = " +
                       num(c.shear.max_axial_strain));
   return c;
+}
+
+namespace {
+std::string repr(const toml::node& n) {
+  std::ostringstream v;
+  n.visit([&](const auto& el) { v << el; });
+  return v.str();
+}
+
+// "section.key" -> the value as TOML prints it, for every leaf of the (two-level) config.
+std::map<std::string, std::string> flatten(const std::string& text) {
+  std::map<std::string, std::string> out;
+  const toml::table t = toml::parse(text);
+  for (const auto& [section, node] : t) {
+    if (const toml::table* inner = node.as_table()) {
+      for (const auto& [key, value] : *inner) out[std::string(section.str()) + "." + std::string(key.str())] = repr(value);
+    } else {
+      out[std::string(section.str())] = repr(node);
+    }
+  }
+  return out;
+}
+
+bool safe_to_change(const std::string& key) {
+  return key.rfind("output.", 0) == 0 || key.rfind("tests.", 0) == 0 || key == "shear.max_axial_strain";
+}
+}  // namespace
+
+std::vector<std::string> changed_keys(const std::string& before, const std::string& after, bool include_safe) {
+  const auto a = flatten(before), b = flatten(after);
+  std::vector<std::string> keys;
+  for (const auto& [k, v] : a) {
+    const auto it = b.find(k);
+    if ((it == b.end() || it->second != v) && (include_safe || !safe_to_change(k))) keys.push_back(k);
+  }
+  for (const auto& [k, v] : b)
+    if (!a.count(k) && (include_safe || !safe_to_change(k))) keys.push_back(k);
+  std::sort(keys.begin(), keys.end());
+  return keys;
 }
 
 }  // namespace sandcell::triaxial

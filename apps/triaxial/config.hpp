@@ -94,6 +94,11 @@ extern const char* const k_default_config;
 /// Parses and validates. `source` names the file in messages. Throws ConfigError.
 Config parse_config(const std::string& text, const std::string& source);
 
+/// The keys ("section.key") whose values differ between two valid config texts, a key present in
+/// one only included; keys a resume may change without changing what was computed (`safe`:
+/// output.*, tests.*, shear.max_axial_strain) are left out unless `include_safe`.
+std::vector<std::string> changed_keys(const std::string& before, const std::string& after, bool include_safe = false);
+
 /// Short text name of a path ("constant_p", ...).
 const char* path_name(ShearPath path);
 

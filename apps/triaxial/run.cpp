@@ -87,6 +87,7 @@ struct Options {
   bool prepare_only = false;      // run the preparations, no test
   bool list = false;              // print the tasks and exit
   std::vector<std::string> task_specs;  // --task values as given
+  std::vector<std::string> allow_change;  // --allow-change keys: a resume may change them
   std::uint64_t stop_after = 0;   // > 0: each job stops after this many steps of this process, with a
                                   // checkpoint, as a killed run would (to test --resume)
   /// Whether a job that started this process at step0 stops (--stop-after) at step s.
@@ -1150,6 +1151,9 @@ int triaxial_main(int argc, const char* const* argv, std::ostream& out, std::ost
   app.add_option("--task", options.task_specs,
                  "run only these tasks of --list: K, A-B or K,L,... (repeatable); a test finds its sample in --out or prepares it")
       ->take_all();
+  app.add_option("--allow-change", options.allow_change,
+                 "with --resume or --task: let these config keys (section.key) differ from the run's (.config.toml)")
+      ->take_all();
   app.add_flag("--print-default", print_default, "print the embedded default configuration and exit");
   app.add_option("--stop-after", options.stop_after,
                  "stop every job after N steps with a checkpoint, as if killed (to test --resume)");
@@ -1251,8 +1255,42 @@ int triaxial_main(int argc, const char* const* argv, std::ostream& out, std::ost
     return 2;
   }
   fs::create_directories(plan.out / ".locks", ec);
+  // The config a directory's run was made with: a resume (or a task) with other physics would give
+  // tests computed half with one setting and half with another.
+  const fs::path stored_config = plan.out / ".config.toml";
+  if ((options.resume || selected) && !options.overwrite && fs::exists(stored_config)) {
+    std::ifstream in(stored_config);
+    std::ostringstream before;
+    before << in.rdbuf();
+    std::vector<std::string> keys;
+    try {
+      keys = changed_keys(before.str(), plan.config.text);
+    } catch (const std::exception& e) {
+      err << "triaxial: " << stored_config.string() << ": cannot read the run's config (" << e.what() << ")\n";
+      return 2;
+    }
+    std::vector<std::string> refused;
+    for (const std::string& k : keys)
+      if (std::find(options.allow_change.begin(), options.allow_change.end(), k) == options.allow_change.end())
+        refused.push_back(k);
+    if (!refused.empty()) {
+      std::string list;
+      for (const std::string& k : refused) list += (list.empty() ? "" : ", ") + k;
+      err << "triaxial: " << plan.config.source << " differs from the run in " << plan.out.string() << " (.config.toml) in "
+          << list << "; allowed: the run's values, changes to output.*, tests.* and shear.max_axial_strain, or "
+          << "--allow-change KEY for a change you mean\n";
+      return 2;
+    }
+  }
   if (options.overwrite)
     for (const fs::path& f : files) fs::remove(f, ec);
+  try {
+    if (!fs::exists(stored_config) || options.overwrite || !options.allow_change.empty() || !selected)
+      write_replacing(plan, ".config.toml", [&](std::ostream& o) { o << plan.config.text; });
+  } catch (const std::exception& e) {
+    err << "triaxial: " << e.what() << '\n';
+    return 1;
+  }
   install_stop_handlers();
 
   Log log(out, options.progress);

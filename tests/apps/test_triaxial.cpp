@@ -520,6 +520,38 @@ TEST_CASE("triaxial: a full disk is exit 1 naming the file, with no crash and no
   fs::remove_all(dir);
 }
 
+TEST_CASE("triaxial: --resume with a config whose physics changed is refused, listing the keys") {
+  // Before: friction 0.5 -> 0.9 resumed silently, one test computed with both frictions while its
+  // file said 0.5.
+  const fs::path dir = fresh_dir("changed");
+  std::string config = k_small;
+  config.replace(config.find("max_axial_strain = 0.03"), 23, "max_axial_strain = 0.002");
+  write(dir / "run.toml", config);
+  const std::string out = (dir / "out").string();
+  REQUIRE(run({(dir / "run.toml").string(), "--out", out, "--stop-after", "200"}).code == 3);
+  const std::string index = read(dir / "out" / "index.csv");
+  std::string changed = config;
+  changed.replace(changed.find("young = 1.0e9"), 13, "young = 1.0e9\nfriction = 0.9");
+  changed.replace(changed.find("count = 300"), 11, "count = 400");
+  write(dir / "changed.toml", changed);
+  const Result r = run({(dir / "changed.toml").string(), "--out", out, "--resume"});
+  CHECK(r.code == 2);
+  CHECK(r.err.find("in material.friction, sample.count;") != std::string::npos);
+  CHECK(std::count(r.err.begin(), r.err.end(), '\n') == 1);
+  CHECK(read(dir / "out" / "index.csv") == index);  // nothing ran
+  // --allow-change for the keys meant; a safe key (output.*) needs nothing.
+  const Result allowed = run({(dir / "changed.toml").string(), "--out", out, "--resume", "--stop-after", "1",
+                              "--allow-change", "material.friction", "sample.count"});
+  CHECK(allowed.code == 3);
+  std::string safe = changed;
+  safe.replace(safe.find("series_interval = 100"), 21, "series_interval = 50");
+  write(dir / "safe.toml", safe);
+  const Result ok = run({(dir / "safe.toml").string(), "--out", out, "--resume"});
+  INFO(ok.err);
+  CHECK(ok.code == 0);
+  fs::remove_all(dir);
+}
+
 TEST_CASE("triaxial: the shipped configs parse, and default.toml is the embedded default") {
   const fs::path dir = fs::path(SANDCELL_SOURCE_DIR) / "apps/triaxial/configs";
   CHECK(read(dir / "default.toml") == triaxial::k_default_config);
