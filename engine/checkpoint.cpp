@@ -3,7 +3,9 @@
 #include "engine/field_io.hpp"
 #include "engine/version.hpp"
 
+#include <algorithm>
 #include <cerrno>
+#include <cmath>
 #include <cstring>
 #include <stdexcept>
 
@@ -37,6 +39,73 @@ void check_sizes(const State& state) {
   });
 }
 
+// FNV-1a over the bytes of every registry array, the cell, the clock and the extras, in one fixed
+// order: stored with a checkpoint and recomputed from what is read, so a flipped bit anywhere in the
+// data is an error naming the file, never a different state.
+struct Checksum {
+  std::uint64_t h = 1469598103934665603ull;
+  void bytes(const void* p, std::size_t n) {
+    const auto* c = static_cast<const unsigned char*>(p);
+    for (std::size_t k = 0; k < n; ++k) h = (h ^ c[k]) * 1099511628211ull;
+  }
+  template <class T>
+  void values(const std::vector<T>& v) {
+    const std::uint64_t n = v.size();
+    bytes(&n, sizeof n);
+    if (!v.empty()) bytes(v.data(), v.size() * sizeof(T));
+  }
+  void text(const std::string& s) {
+    const std::uint64_t n = s.size();
+    bytes(&n, sizeof n);
+    bytes(s.data(), s.size());
+  }
+};
+
+std::uint64_t checksum(const State& state, const CheckpointExtra& extra) {
+  Checksum c;
+  for_each_particle_field(state.particles, [&](const FieldInfo&, const auto& v) { c.values(v); });
+  for_each_contact_field(state.contacts, [&](const FieldInfo&, const auto& v) { c.values(v); });
+  c.bytes(state.contacts.pairs.reference_length.data(), 3 * sizeof(double));
+  for (const Vec3* v : {&state.cell.length, &state.cell.length0, &state.cell.rate, &state.cell.servo_integral})
+    c.bytes(v->data(), 3 * sizeof(double));
+  c.bytes(&state.clock.step, sizeof state.clock.step);
+  c.bytes(&state.clock.time, sizeof state.clock.time);
+  for (const auto& [k, v] : extra.doubles) {
+    c.text(k);
+    c.values(v);
+  }
+  for (const auto& [k, v] : extra.integers) {
+    c.text(k);
+    c.values(v);
+  }
+  for (const auto& [k, v] : extra.strings) {
+    c.text(k);
+    c.text(v);
+  }
+  return c.h;
+}
+
+// What the engine indexes with must be in range, whatever the file says (a corrupted file whose
+// checksum happens to be missing must not crash the engine).
+void check_ranges(const std::filesystem::path& path, const State& state) {
+  const auto fail = [&](const std::string& what) {
+    throw std::runtime_error(path.string() + ": corrupted checkpoint: " + what);
+  };
+  const std::size_t n = state.particles.size();
+  const ContactPairs& c = state.contacts.pairs;
+  for (std::size_t k = 0; k < c.size(); ++k) {
+    if (c.i[k] >= n || c.j[k] >= n)
+      fail("contacts/i or j[" + std::to_string(k) + "] = " + std::to_string(std::max(c.i[k], c.j[k])) + " of " +
+           std::to_string(n) + " particles");
+    if (state.particles.id[c.i[k]] != c.id_i[k] || state.particles.id[c.j[k]] != c.id_j[k])
+      fail("contact " + std::to_string(k) + " does not join the particles its ids name");
+  }
+  for (std::size_t k = 0; k < n; ++k)
+    if (!(state.particles.radius[k] > 0.0) || !(state.particles.mass[k] > 0.0) || !std::isfinite(state.particles.radius[k]))
+      fail("particle " + std::to_string(k) + ": radius or mass not > 0");
+  if (!(state.cell.length.minCoeff() > 0.0) || !state.cell.length.allFinite()) fail("cell lengths not > 0");
+}
+
 // Keys become HDF5 link names, where '/' separates groups and "." is the group itself.
 void check_key(const std::string& key, std::string_view map) {
   if (key.empty() || key == "." || key.find('/') != std::string::npos)
@@ -45,6 +114,7 @@ void check_key(const std::string& key, std::string_view map) {
 }
 
 void write_contents(h5::File& file, const State& state, const CheckpointExtra& extra) {
+  file.root().set_value<std::int64_t>("checksum", static_cast<std::int64_t>(checksum(state, extra)));
   h5::Group root = file.root();
   root.set_string("format", k_format);
   root.set_value<std::int64_t>("schema_version", k_checkpoint_schema);
@@ -183,6 +253,23 @@ State read_checkpoint(const std::filesystem::path& path, CheckpointExtra* extra)
       const h5::Group strings = ex.open_group("strings");
       for (const std::string& key : strings.attribute_names()) extra->strings[key] = strings.get_string(key);
     }
+    // Checkpoints written before the checksum have none; their ranges are still checked.
+    if (root.has_attribute("checksum")) {
+      CheckpointExtra all;
+      const CheckpointExtra& x = extra != nullptr ? *extra : all;
+      if (extra == nullptr) {  // the checksum covers the extras too: read them for it
+        const h5::Group ex = root.open_group("extra");
+        const h5::Group doubles = ex.open_group("doubles");
+        for (const std::string& key : doubles.children()) all.doubles[key] = doubles.open_dataset(key).read<double>();
+        const h5::Group integers = ex.open_group("integers");
+        for (const std::string& key : integers.children()) all.integers[key] = integers.open_dataset(key).read<std::int64_t>();
+        const h5::Group strings = ex.open_group("strings");
+        for (const std::string& key : strings.attribute_names()) all.strings[key] = strings.get_string(key);
+      }
+      if (static_cast<std::uint64_t>(root.get_value<std::int64_t>("checksum")) != checksum(state, x))
+        throw std::runtime_error(path.string() + ": corrupted checkpoint: its data do not match the checksum written with it");
+    }
+    check_ranges(path, state);
   }
   return state;
 }

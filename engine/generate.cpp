@@ -65,6 +65,19 @@ void validate(const GenerationSettings& s) {
     if (t.front().second != 0.0) fail("gradation[0].percent", num(t.front().second), "must be 0 (the smallest diameter)");
     if (t.back().second != 100.0)
       fail("gradation[" + std::to_string(t.size() - 1) + "].percent", num(t.back().second), "must be 100 (the largest diameter)");
+    // sample_diameters draws by mass and keeps a draw with probability (d_min/d)^3 (by number): the
+    // mean of that over the mass distribution is the share of draws kept. A gradation over many
+    // decades keeps almost none, and sampling would not end.
+    double kept = 0.0;
+    constexpr int k_points = 4096;
+    for (int k = 0; k < k_points; ++k) {
+      const double d = gradation_inverse(t, (k + 0.5) / k_points);
+      kept += std::pow(t.front().first / d, 3.0) / k_points;
+    }
+    if (kept < 1e-4)
+      fail("gradation", "[" + num(t.front().first) + " ... " + num(t.back().first) + " m]",
+           "spans too wide a range to sample: " + num(1.0 / kept) + " draws a sphere (allowed: up to 1e4, e.g. "
+           "d_max / d_min <= ~20 for a mass-linear gradation)");
   }
 }
 

@@ -184,7 +184,10 @@ class Section {
     else if (node.is_table()) out << "(a table)";
     else if (node.is_array()) out << "(an array)";
     else node.visit([&](const auto& v) { out << v; });
-    return out.str();
+    // A value is echoed in one-line messages: a long one is cut.
+    std::string text = out.str();
+    if (text.size() > 60) text = text.substr(0, 57) + "...";
+    return text;
   }
 
  private:
@@ -262,6 +265,9 @@ Config parse_config(const std::string& text, const std::string& source) {
     s.check_unknown();
     if (g.sizes.kind == SizeDistribution::Kind::gradation && g.sizes.table.empty())
       s.fail("gradation", "(missing)", "required when distribution = \"gradation\"");
+    if (g.sizes.kind == SizeDistribution::Kind::uniform && !g.sizes.table.empty())
+      s.fail("gradation", "(" + std::to_string(g.sizes.table.size()) + " rows)",
+             "given with distribution = \"uniform\", which ignores it; allowed: distribution = \"gradation\", or no gradation");
     if (c.sample.packing_file.empty()) {
       try {
         validate(g);

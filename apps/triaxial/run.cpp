@@ -471,6 +471,8 @@ bool Runner::prepare(double p0, Summary& summary) {
                                         {{"job", summary.name}, {"stage", "prepare"}, {"from", "sample-" + p0_tag(from)}}));
   } else {
     Packing packing = plan_.packing;
+    if (!plan_.from_file && plan_.config.sample.generation.count > 100'000)  // the placement takes a while
+      log_.line(summary.name + ": placing " + std::to_string(plan_.config.sample.generation.count) + " spheres at random");
     if (!plan_.from_file) packing = generate_packing(plan_.config.sample.generation);
     state = make_state(model, packing);
     results.emplace(ResultsFile::create(series, plan_.config.text, {{"job", summary.name}, {"stage", "prepare"}}));
@@ -853,7 +855,15 @@ Plan make_plan(Config config_in, const Options& options) {
   const double cutoff = 2.0 * plan.r_max + m.contact.skin;
   if (!(narrowest > cutoff)) {
     const double needed = static_cast<double>(diameters.size()) * std::pow(cutoff / narrowest, 3.0);
-    throw ConfigError(src + ": sample.count = " + std::to_string(diameters.size()) + ": the cell would narrow to " +
+    // The key at fault first: a skin wider than the spheres, a packing file's huge sphere, a
+    // strain path that collapses the cell; else the sample is too small.
+    std::string key = "sample.count = " + std::to_string(diameters.size());
+    if (m.contact.skin > 2.0 * plan.r_max) key = "contact.skin = " + num(m.contact.skin) + " m (wider than the largest sphere)";
+    else if (plan.from_file && 2.0 * plan.r_max > 0.25 * side)
+      key = "sample.file = \"" + sc.packing_file + "\": its largest radius " + num(plan.r_max) + " m";
+    else if (narrowest < side * std::exp(-max_strain) && config.shear.steps > 0)
+      key = "shear.steps = " + std::to_string(config.shear.steps) + " (with shear.strain_rates)";
+    throw ConfigError(src + ": " + key + ": the cell would narrow to " +
                       num(narrowest) + " m (dense sample, then the axial strain), not wider than 2 r_max + skin = " +
                       num(cutoff) + " m; allowed: more than " + num(std::ceil(needed), "%.0f") +
                       " spheres, or a smaller shear.max_axial_strain");
@@ -861,6 +871,32 @@ Plan make_plan(Config config_in, const Options& options) {
   for (const TestSpec& t : config.tests)
     if (std::find(plan.p0.begin(), plan.p0.end(), t.p0) == plan.p0.end()) plan.p0.push_back(t.p0);
   if (config.prepare.chain) std::sort(plan.p0.begin(), plan.p0.end());
+  // Runs that cannot end in any reasonable time (a 1e308 Pa modulus made dt 1e-155 s) or whose
+  // servo acts too seldom to control anything are refused, naming the key.
+  for (const TestSpec& t : config.tests) {
+    if (t.path == ShearPath::strain) continue;
+    const double rate = axial_rate(plan, t.p0);
+    const double steps = max_strain / (rate * m.dt);
+    if (!(steps < 1e10))
+      throw ConfigError(src + ": " + (m.dt < 1e-12 ? "material.young = " + num(config.material.young) + " Pa (dt = " + num(m.dt) + " s)"
+                                                   : std::string(config.shear.inertial_number > 0.0 ? "shear.inertial_number" : "shear.strain_rate")) +
+                        ": the test at p0 = " + num(t.p0) + " Pa would take " + num(steps, "%.2g") +
+                        " steps; allowed: up to 1e10 (a stiffer time step or a faster rate)");
+    const double strain_per_update = rate * m.dt * config.shear.servo_interval;
+    if (strain_per_update > 1e-3)
+      throw ConfigError(src + ": shear.servo_interval = " + std::to_string(config.shear.servo_interval) +
+                        ": the servo would act only every " + num(strain_per_update, "%.2g") +
+                        " of axial strain; allowed: at most 1e-3 (here " +
+                        num(std::max(1.0, std::floor(1e-3 / (rate * m.dt))), "%.0f") + " steps)");
+  }
+  {
+    // The preparation compresses the cloud at prepare.max_rate at most: ln(0.64 / solid fraction) / 3 per axis.
+    const double phi0 = plan.from_file ? 0.3 : config.sample.generation.solid_fraction;
+    const double steps = std::log(0.64 / phi0) / 3.0 / (config.prepare.max_rate * plan.prepare_dt);
+    if (!(steps < 1e10))
+      throw ConfigError(src + ": " + (plan.prepare_dt < 1e-12 ? "material.young = " + num(config.material.young) + " Pa" : "prepare.max_rate = " + num(config.prepare.max_rate)) +
+                        ": the preparation would take more than " + num(steps, "%.2g") + " steps; allowed: up to 1e10");
+  }
   // Servo settings are checked here, before anything is written.
   try {
     validate(prepare_model(plan, plan.p0.front()).servo);
@@ -1021,6 +1057,15 @@ static int script_main(const std::string& command, int argc, const char* const* 
   return WIFEXITED(status) ? WEXITSTATUS(status) : 1;
 }
 
+// A message for one line of at most ~300 characters: newlines become spaces; a longer one keeps its
+// head and tail (the key and what is allowed) around "...".
+static std::string one_line(std::string m) {
+  std::replace(m.begin(), m.end(), '\n', ' ');
+  constexpr std::size_t k_max = 280;  // with "triaxial: " in front, under 300
+  if (m.size() > k_max) m = m.substr(0, 170) + " ... " + m.substr(m.size() - 105);
+  return m;
+}
+
 // Reads and plans a config file for a subcommand; throws ConfigError.
 static Plan plan_from_file(const std::string& path, const Options& options) {
   std::ifstream in(path);
@@ -1155,6 +1200,8 @@ int triaxial_main(int argc, const char* const* argv, std::ostream& out, std::ost
                  "with --resume or --task: let these config keys (section.key) differ from the run's (.config.toml)")
       ->take_all();
   app.add_flag("--print-default", print_default, "print the embedded default configuration and exit");
+  bool check_only = false;
+  app.add_flag("--check", check_only, "check the configuration (and plan the campaign) and exit; nothing is written");
   app.add_option("--stop-after", options.stop_after,
                  "stop every job after N steps with a checkpoint, as if killed (to test --resume)");
   try {
@@ -1174,6 +1221,20 @@ int triaxial_main(int argc, const char* const* argv, std::ostream& out, std::ost
     err << "triaxial: --resume and --overwrite exclude each other\n";
     return 2;
   }
+  if (std::isnan(options.max_axial_strain)) {
+    err << "triaxial: --max-axial-strain = nan: allowed: a number in (0, 2]\n";
+    return 2;
+  }
+  // Path limits of Linux: 4096 bytes in all, 255 a name (a longer one fails every file call).
+  {
+    std::size_t longest = 0;
+    for (const auto& part : fs::path(options.out)) longest = std::max(longest, part.native().size());
+    if (options.out.size() > 3800 || longest > 255) {
+      err << "triaxial: --out = " << options.out.substr(0, 40) << "... (" << options.out.size()
+          << " characters): allowed: a path under 3800 characters, each name under 256\n";
+      return 2;
+    }
+  }
   options.progress = ::isatty(STDOUT_FILENO) && &out == &std::cout;
 
   Plan plan;
@@ -1183,7 +1244,9 @@ int triaxial_main(int argc, const char* const* argv, std::ostream& out, std::ost
       text = k_default_config;
     } else {
       std::ifstream in(options.config_path);
-      if (!in) throw ConfigError(options.config_path + ": cannot read the configuration file");
+      if (!in || fs::is_directory(options.config_path))
+        throw ConfigError(options.config_path + ": cannot read the configuration file" +
+                          (fs::is_directory(options.config_path) ? " (a directory)" : ""));
       std::ostringstream buffer;
       buffer << in.rdbuf();
       text = buffer.str();
@@ -1191,8 +1254,16 @@ int triaxial_main(int argc, const char* const* argv, std::ostream& out, std::ost
     }
     plan = make_plan(parse_config(text, source), options);
   } catch (const ConfigError& e) {
-    err << "triaxial: " << e.what() << '\n';
+    err << "triaxial: " << one_line(e.what()) << '\n';
     return 2;
+  } catch (const std::exception& e) {  // e.g. a file system error on an unreadable path
+    err << "triaxial: " << one_line(e.what()) << '\n';
+    return 2;
+  }
+  if (check_only) {
+    out << "triaxial: " << plan.config.source << ": valid: " << plan.config.tests.size() << " test(s), " << plan.p0.size()
+        << " sample(s), dt = " << num(plan.base.dt) << " s\n";
+    return 0;
   }
   plan.out = !options.out.empty() ? fs::path(options.out)
              : options.config_path.empty() ? fs::path("results/default")
