@@ -236,6 +236,15 @@ class AccuracyWatch {
       }
     }
   }
+  /// The worst values so far, for a checkpoint; restore() takes them back on resume (with the
+  /// warnings they already caused), so the last line covers the whole test.
+  std::vector<double> worst_values() const { return {worst_, worst_ + k_count}; }
+  void restore(const std::vector<double>& w) {
+    for (int k = 0; k < k_count && k < static_cast<int>(w.size()); ++k) {
+      worst_[k] = w[k];
+      warned_[k] = w[k] > k_limits[k].limit;
+    }
+  }
   std::string worst() const {
     return "max I " + num(worst_[0], "%.2g") + ", unbalanced " + num(worst_[1], "%.2g") + ", Ek/Ee " +
            num(worst_[2], "%.2g") + ", overlap/R " + num(worst_[3], "%.2g");
@@ -644,6 +653,7 @@ void Runner::shear(const TestSpec& test, Summary& summary) {
   Model model = shear_model(plan_, test);
   Timer timer;
   History history;
+  std::vector<double> watch_saved;  // the accuracy watch's worst values, from a checkpoint
   State state;
   std::optional<ResultsFile> results;
   bool resumed = false;
@@ -660,6 +670,7 @@ void Runner::shear(const TestSpec& test, Summary& summary) {
       return;
     }
     history.load(extra);
+    watch_saved = extra.doubles["watch_worst"];
     results.emplace(ResultsFile::reopen(path, state.clock.step));
     resumed = true;
     log_.line(test.name + ": resumed at step " + std::to_string(state.clock.step));
@@ -685,6 +696,12 @@ void Runner::shear(const TestSpec& test, Summary& summary) {
   std::uint64_t rows = 0;
   Measures m;
   AccuracyWatch watch(test.name, log_);
+  watch.restore(watch_saved);
+  const auto extras = [&] {
+    CheckpointExtra x = history.save();
+    x.doubles["watch_worst"] = watch.worst_values();
+    return x;
+  };
   const auto row = [&]() {
     m = measure(world.model(), world.state(), world.executor(), mo);
     check_finite(world.state(), m);
@@ -740,11 +757,11 @@ void Runner::shear(const TestSpec& test, Summary& summary) {
     if (done || summary.critical) break;
     if (checkpoint_due(o, s, timer)) {
       results->flush();
-      save(ckpt, st, history.save(), timer);
+      save(ckpt, st, extras(), timer);
     }
     if (plan_.options.stop_due(s, step0)) {
       results->flush();
-      save(ckpt, st, history.save(), timer);
+      save(ckpt, st, extras(), timer);
       throw Interrupted(test.name + ": stopped at step " + std::to_string(s) + " (" + Options::stop_reason() + "), checkpoint written");
     }
     if (progress_due()) {
@@ -763,7 +780,7 @@ void Runner::shear(const TestSpec& test, Summary& summary) {
   State& st = world.state();
   if (o.snapshot_interval == 0 || st.clock.step % o.snapshot_interval != 0) results->write_snapshot(st);
   results->close();
-  CheckpointExtra extra = history.save();
+  CheckpointExtra extra = extras();
   extra.integers["complete"] = {1};
   save(ckpt, st, extra, timer);
 
