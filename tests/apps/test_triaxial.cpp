@@ -143,6 +143,17 @@ TEST_CASE("triaxial: each class of bad input exits 2 naming the key, and clobber
        "diameters must increase"},
       {"missing packing file", with("sample", "file = \"/nonexistent/packing.txt\""), "sample.file"},
       {"ramp longer than the test", with("shear", "ramp_strain = 0.05"), "shear.ramp_strain = 0.05: must be below shear.max_axial_strain = 0.03"},
+      // Each of the following hung, ran forever or ran meaninglessly before (issue 32).
+      {"a gradation over 9 decades", with("sample", "distribution = \"gradation\"\ngradation = [[1e-9, 0], [1, 100]]"),
+       "spans too wide a range to sample"},
+      {"a gradation the uniform distribution would ignore", with("sample", "gradation = [[0.005, 0], [0.004, 100]]"),
+       "sample.gradation = (2 rows): given with distribution = \"uniform\""},
+      {"a modulus that makes dt vanish", std::string(base).replace(base.find("young = 1.0e9"), 13, "young = 1e308"),
+       "material.young = 1e+308 Pa (dt = "},
+      {"a servo acting once per test", with("shear", "servo_interval = 1000000"), "shear.servo_interval = 1000000: the servo would act only every"},
+      {"a value 100 kB long", with("material", "density = \"" + std::string(100000, 'x') + "\""), "material.density = \"xxx"},
+      {"a skin wider than the spheres", std::string(base).replace(base.find("[material]"), 10, "[contact]\nskin = 1.0\n[material]"),
+       "contact.skin = 1 m (wider than the largest sphere)"},
       {"both an axial rate and an inertial number", with("shear", "inertial_number = 2e-3"),
        "shear.strain_rate = 2 and shear.inertial_number = 0.002: give exactly one of the two"},
       {"a non-positive inertial number", std::string(base).replace(base.find("strain_rate = 2.0"), 17, "inertial_number = 0.0"),
@@ -164,8 +175,30 @@ TEST_CASE("triaxial: each class of bad input exits 2 naming the key, and clobber
     CHECK(std::count(r.err.begin(), r.err.end(), '\n') == 1);  // one line
     CHECK(read(dir / "index.csv") == "results of an earlier run\n");
   }
-  // Bad command line: unknown option, and --threads out of range.
+  // Every message above is one line under 300 characters, the 100 kB value cut (checked in the loop
+  // for one line; here the length).
+  for (const Case& c : cases) {
+    write(dir / "bad.toml", c.config);
+    const Result r = run({(dir / "bad.toml").string(), "--out", dir.string()});
+    CHECK(r.err.size() < 300);
+  }
+  // Bad command line: unknown option, --threads out of range, a NaN strain, a directory as the
+  // config (it ran the embedded default), an --out too long for the file system (it aborted).
   CHECK(run({"--frobnicate"}).code == 2);
+  CHECK(run({"--max-axial-strain", "nan", "--out", dir.string()}).err.find("--max-axial-strain = nan") != std::string::npos);
+  const Result as_dir = run({dir.string(), "--out", (dir / "x").string()});
+  CHECK(as_dir.code == 2);
+  CHECK(as_dir.err.find("(a directory)") != std::string::npos);
+  // A packing file with two coincident spheres: named, instead of "went unstable ... lower dt".
+  write(dir / "packing.txt", "0.05 0.05 0.05 3\n0.01 0.01 0.01 0.003\n0.03 0.03 0.03 0.003\n0.01 0.01 0.01 0.003\n");
+  write(dir / "packed.toml", "[sample]\nfile = \"" + (dir / "packing.txt").string() + "\"\n[shear]\nstrain_rate = 1.0\n");
+  const Result coincident = run({(dir / "packed.toml").string(), "--out", (dir / "x").string()});
+  CHECK(coincident.code == 2);
+  CHECK(coincident.err.find("spheres 1 and 3 (in file order) overlap by 2 of the smaller radius") != std::string::npos);
+  const Result long_out = run({"--out", std::string(5000, 'o')});
+  CHECK(long_out.code == 2);
+  CHECK(long_out.err.find("--out = ooo") != std::string::npos);
+  CHECK(!fs::exists(dir / "x"));
   const Result t = run({"--threads", "0"});
   CHECK(t.code == 2);
   CHECK(t.err.find("--threads") != std::string::npos);
