@@ -260,15 +260,17 @@ class AccuracyWatch {
   // sqrt(rho/p)): the inertia study (docs/study-inertia) found every measure within one test's
   // scatter from I = 1e-5 up to 3e-3 and the peak q/p 0.05-0.5 too high at 1e-2; the limit is 3e-3
   // plus 5 % for the fluctuation of the measured p between servo updates. An unbalanced force
-  // ratio above 0.1 and a kinetic energy above 1 % of the stored elastic energy mean inertia
-  // carries part of the load; Hertz theory assumes overlaps small beside the radius.
+  // ratio above 0.1 means forces far from balance; the kinetic energy reached 4 % of the stored
+  // elastic energy in the fast protocol's validation (19,436 spheres at I = 3e-3, README), whose
+  // peak and dilatancy errors stayed within the seed scatter and whose critical q/p rose by 2 %:
+  // 5 % is the limit; Hertz theory assumes overlaps small beside the radius.
   static constexpr Limit k_limits[k_count] = {
       {"inertial number eps_dot_1 d50 sqrt(rho/p)", 3.15e-3,
        "validated up to 3e-3 (docs/study-inertia): lower shear.strain_rate or shear.inertial_number"},
       {"unbalanced force ratio", 0.1,
        "forces far from balance: lower shear.strain_rate or shear.inertial_number; from the first rows on, "
        "lower time.dt_fraction (stiff contacts at high p: 0.35 t_R was unstable at 16 MPa)"},
-      {"kinetic / elastic energy", 0.01,
+      {"kinetic / elastic energy", 0.05,
        "inertia carries load: lower shear.strain_rate or shear.inertial_number, or time.dt_fraction"},
       {"max overlap / radius", 0.05, "beyond small-strain Hertz contact: raise material.young or lower p0"},
   };
