@@ -1,6 +1,7 @@
 #include "engine/checkpoint.hpp"
 
 #include "engine/field_io.hpp"
+#include "engine/fnv1a.hpp"
 #include "engine/version.hpp"
 
 #include <algorithm>
@@ -43,21 +44,18 @@ void check_sizes(const State& state) {
 // order: stored with a checkpoint and recomputed from what is read, so a flipped bit anywhere in the
 // data is an error naming the file, never a different state.
 struct Checksum {
-  std::uint64_t h = 1469598103934665603ull;
-  void bytes(const void* p, std::size_t n) {
-    const auto* c = static_cast<const unsigned char*>(p);
-    for (std::size_t k = 0; k < n; ++k) h = (h ^ c[k]) * 1099511628211ull;
-  }
+  Fnv1a f;
+  void bytes(const void* p, std::size_t n) { f.bytes(p, n); }
   template <class T>
-  void values(const std::vector<T>& v) {
+  void values(const std::vector<T>& v) {  // length first: ["a"]["bc"] differs from ["ab"]["c"]
     const std::uint64_t n = v.size();
-    bytes(&n, sizeof n);
-    if (!v.empty()) bytes(v.data(), v.size() * sizeof(T));
+    f.bytes(&n, sizeof n);
+    f.array(v);
   }
   void text(const std::string& s) {
     const std::uint64_t n = s.size();
-    bytes(&n, sizeof n);
-    bytes(s.data(), s.size());
+    f.bytes(&n, sizeof n);
+    f.bytes(s.data(), s.size());
   }
 };
 
@@ -82,7 +80,7 @@ std::uint64_t checksum(const State& state, const CheckpointExtra& extra) {
     c.text(k);
     c.text(v);
   }
-  return c.h;
+  return c.f.h;
 }
 
 // What the engine indexes with must be in range, whatever the file says (a corrupted file whose

@@ -26,6 +26,7 @@
 // final state (FNV-1a over the bytes of ids, positions, velocities, spins, contact histories and the
 // cell): equal digests mean bitwise equal runs, across thread counts, machines or versions.
 #include "engine/build_arch.hpp"
+#include "engine/fnv1a.hpp"
 #include "engine/packing.hpp"
 #include "engine/world.hpp"
 #include "systems/stress.hpp"
@@ -64,19 +65,7 @@ double parse_number(const char* key, const char* text, double lo, double hi) {
                 std::to_string(hi) + "]");
   return v;
 }
-// FNV-1a, 64 bit, over the raw bytes of the state arrays in array order.
-struct Fnv1a {
-  std::uint64_t h = 0xcbf29ce484222325ull;
-  void bytes(const void* data, std::size_t size) {
-    const auto* b = static_cast<const unsigned char*>(data);
-    for (std::size_t k = 0; k < size; ++k) h = (h ^ b[k]) * 0x100000001b3ull;
-  }
-  template <class T>
-  void array(const std::vector<T>& v) {
-    bytes(v.data(), v.size() * sizeof(T));
-  }
-};
-
+// FNV-1a (engine/fnv1a.hpp) over the raw bytes of the state arrays in array order.
 std::uint64_t state_digest(const State& s) {
   Fnv1a f;
   f.array(s.particles.id);

@@ -7,6 +7,7 @@
 #include "lock.hpp"
 #include "run.hpp"
 #include "signals.hpp"
+#include "support/affinity.hpp"
 
 #include <doctest/doctest.h>
 #include <hdf5.h>
@@ -21,6 +22,7 @@
 #include <filesystem>
 #include <fstream>
 #include <sstream>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -413,25 +415,15 @@ TEST_CASE("triaxial: prepare.chain compresses the lower p0's sample on to the ne
 }
 
 TEST_CASE("triaxial: the default thread count is the CPUs of the affinity mask (taskset -c 0: 1 thread)") {
-  cpu_set_t saved;
-  REQUIRE(sched_getaffinity(0, sizeof saved, &saved) == 0);
-  const char* slurm = std::getenv("SLURM_CPUS_PER_TASK");
-  const std::string slurm_saved = slurm ? slurm : "";
-  ::unsetenv("SLURM_CPUS_PER_TASK");
-  int first = 0;
-  while (!CPU_ISSET(first, &saved)) ++first;
-  cpu_set_t one;
-  CPU_ZERO(&one);
-  CPU_SET(first, &one);
-  REQUIRE(sched_setaffinity(0, sizeof one, &one) == 0);
+  std::optional<test::OneCpu> one(std::in_place);
+  REQUIRE(one->ok());
   const fs::path dir = fresh_dir("affinity");
   std::string config = k_small;
   config.replace(config.find("max_axial_strain = 0.03"), 23, "max_axial_strain = 0.001");
   write(dir / "one.toml", config);
   const Result r = run({(dir / "one.toml").string(), "--out", (dir / "a").string()});
   const Result over = run({(dir / "one.toml").string(), "--out", (dir / "b").string(), "--threads", "2"});
-  REQUIRE(sched_setaffinity(0, sizeof saved, &saved) == 0);
-  if (!slurm_saved.empty()) ::setenv("SLURM_CPUS_PER_TASK", slurm_saved.c_str(), 1);
+  one.reset();  // the whole mask again
   INFO(r.out, r.err);
   REQUIRE(r.code == 0);
   CHECK(r.out.find("1 at once x 1 thread(s)") != std::string::npos);

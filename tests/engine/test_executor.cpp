@@ -1,5 +1,6 @@
 // Executor seam: coverage of parallel_for and bitwise determinism of deterministic_reduce.
 #include "engine/executor.hpp"
+#include "support/affinity.hpp"
 
 #include <doctest/doctest.h>
 
@@ -76,26 +77,18 @@ TEST_CASE("executor reports its thread count") {
 
 TEST_CASE("available_cpus follows the affinity mask, and SLURM_CPUS_PER_TASK inside a Slurm job") {
   // The count is what a scheduler grants, not what the machine has: under `taskset -c K` (one CPU)
-  // a default executor must run one thread. Restored afterwards for the other tests.
-  cpu_set_t saved;
-  REQUIRE(sched_getaffinity(0, sizeof saved, &saved) == 0);
-  const char* slurm = std::getenv("SLURM_CPUS_PER_TASK");
-  const std::string slurm_saved = slurm ? slurm : "";
-  ::unsetenv("SLURM_CPUS_PER_TASK");
-  CHECK(available_cpus() == CPU_COUNT(&saved));
-  int first = 0;
-  while (!CPU_ISSET(first, &saved)) ++first;
-  cpu_set_t one;
-  CPU_ZERO(&one);
-  CPU_SET(first, &one);
-  REQUIRE(sched_setaffinity(0, sizeof one, &one) == 0);
-  CHECK(available_cpus() == 1);
-  CHECK(Executor({Backend::tbb, 0}).threads() == 1);
-  ::setenv("SLURM_CPUS_PER_TASK", "3", 1);
-  CHECK(available_cpus() == 3);  // the allocation's own count wins inside a job
-  ::setenv("SLURM_CPUS_PER_TASK", "bogus", 1);
-  CHECK(available_cpus() == 1);  // not a positive integer: ignored
-  REQUIRE(sched_setaffinity(0, sizeof saved, &saved) == 0);
-  if (slurm_saved.empty()) ::unsetenv("SLURM_CPUS_PER_TASK");
-  else ::setenv("SLURM_CPUS_PER_TASK", slurm_saved.c_str(), 1);
+  // a default executor must run one thread.
+  int before = 0;
+  {
+    test::OneCpu one;
+    REQUIRE(one.ok());
+    before = one.cpus_before();
+    CHECK(available_cpus() == 1);
+    CHECK(Executor({Backend::tbb, 0}).threads() == 1);
+    ::setenv("SLURM_CPUS_PER_TASK", "3", 1);
+    CHECK(available_cpus() == 3);  // the allocation's own count wins inside a job
+    ::setenv("SLURM_CPUS_PER_TASK", "bogus", 1);
+    CHECK(available_cpus() == 1);  // not a positive integer: ignored
+  }
+  CHECK(available_cpus() == before);  // the whole mask again
 }
