@@ -90,6 +90,21 @@ def main():
             sd = float(np.std([s[key] for s in seeds], ddof=1)) if len(seeds) >= 2 else float("nan")
             cells.append(f"{fmt % err} ({fmt % sd}, {len(seeds)} seeds)")
         lines.append(f"| {cond} | " + " | ".join(cells) + f" | {paper['steps'] / fast['steps']:.1f} | {paper['wall'] / fast['wall']:.1f} |")
+    # The README's table: per condition and measure, the paper run, the fast run on its sample,
+    # the error, and the fast protocol's seed-to-seed standard deviation.
+    lines += ["", "| test | measure | paper protocol | fast, same sample | error | seed scatter (std, fast) |",
+              "|---|---|---|---|---|---|"]
+    for cond in sorted({n.split("-", 1)[1] for n in runs if n.startswith("paper-")}):
+        paper, fast = runs.get(f"paper-{cond}"), runs.get(f"fast-s2017-{cond}")
+        if not (paper and fast):
+            continue
+        seeds = [runs[n] for n in runs if n.startswith("fast-s") and n.endswith(cond)]
+        for key, label, fmt in METRICS:
+            sd = float(np.std([x[key] for x in seeds], ddof=1)) if len(seeds) >= 2 else float("nan")
+            lines.append(f"| {cond} | {label} | {fmt % paper[key]} | {fmt % fast[key]} | {fmt % abs(fast[key] - paper[key])} | "
+                         f"{fmt % sd} ({len(seeds)} seeds) |")
+        lines.append(f"| {cond} | steps (wall s) | {paper['steps']} ({paper['wall']:.0f}) | {fast['steps']} ({fast['wall']:.0f}) | "
+                     f"{paper['steps'] / fast['steps']:.1f}x fewer | |")
     with open(os.path.join(out, "validation.md"), "w") as fh:
         fh.write("\n".join(lines) + "\n")
     print("\n".join(lines))

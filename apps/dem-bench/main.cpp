@@ -99,6 +99,16 @@ double median(std::vector<double> x) {
   return x.size() % 2 ? x[x.size() / 2] : 0.5 * (x[x.size() / 2 - 1] + x[x.size() / 2]);
 }
 
+// The q-quantile (0 <= q <= 1) by linear interpolation between order statistics (numpy's default):
+// a noisy machine is described by its p10 and p90 next to the median, not by its best round.
+double quantile(std::vector<double> x, double q) {
+  std::sort(x.begin(), x.end());
+  const double pos = q * double(x.size() - 1);
+  const std::size_t lo = static_cast<std::size_t>(pos);
+  const std::size_t hi = std::min(lo + 1, x.size() - 1);
+  return x[lo] + (pos - double(lo)) * (x[hi] - x[lo]);
+}
+
 // The machine's own 1 -> T scaling for a pass that streams through the shared cache, as the
 // integrator and the gather do: y += a x over two arrays of 4 MiB (8 MiB in all, about twice what
 // the integrator's pass moves on dense-20k, and four times one core's L2), `passes` times on
@@ -180,7 +190,11 @@ int run_scaling(const Model& model, const Packing& packing, long steps, int thre
                 "\"median_one\": %.6g, \"median_many\": %.6g, \"median_ratio\": %.6g, \"ratios\": [",
                 n, steps, rounds, threads, deform, median(rate_one), median(rate_many), median(ratio));
     for (std::size_t k = 0; k < ratio.size(); ++k) std::printf("%s%.6g", k ? ", " : "", ratio[k]);
-    std::printf("], \"jobs_median_ratio\": %.6g, \"stream_median_ratio\": %.6g, \"systems\": {",
+    std::printf("], \"p10_one\": %.6g, \"p90_one\": %.6g, \"p10_many\": %.6g, \"p90_many\": %.6g, \"p10_ratio\": %.6g, "
+                "\"p90_ratio\": %.6g, \"p10_many_over_median_one\": %.6g",
+                quantile(rate_one, 0.1), quantile(rate_one, 0.9), quantile(rate_many, 0.1), quantile(rate_many, 0.9),
+                quantile(ratio, 0.1), quantile(ratio, 0.9), quantile(rate_many, 0.1) / median(rate_one));
+    std::printf(", \"jobs_median_ratio\": %.6g, \"stream_median_ratio\": %.6g, \"systems\": {",
                 median(jobs_ratio), median(stream_ratio));
     for (std::size_t k = 0; k < one.graph().size(); ++k)
       std::printf("%s\"%s\": [%.6f, %.6f]", k ? ", " : "", one.graph().system(k).name.c_str(), one.graph().timers()[k],
@@ -189,9 +203,13 @@ int run_scaling(const Model& model, const Packing& packing, long steps, int thre
   } else {
     std::printf("thread scaling: %.0f particles, %ld steps x %d rounds, 1 and %d threads alternating%s\n", n, steps,
                 rounds, threads, deform > 0.0 ? " (scene B)" : "");
-    std::printf("  1 thread    median %8.3f M particle-steps/s\n", median(rate_one) / 1e6);
-    std::printf("  %d threads   median %8.3f M particle-steps/s\n", threads, median(rate_many) / 1e6);
-    std::printf("  ratio       median of the rounds' ratios %.3f (", median(ratio));
+    std::printf("  1 thread    p10 / median / p90 %8.3f / %8.3f / %8.3f M particle-steps/s\n", quantile(rate_one, 0.1) / 1e6,
+                median(rate_one) / 1e6, quantile(rate_one, 0.9) / 1e6);
+    std::printf("  %d threads   p10 / median / p90 %8.3f / %8.3f / %8.3f M particle-steps/s\n", threads,
+                quantile(rate_many, 0.1) / 1e6, median(rate_many) / 1e6, quantile(rate_many, 0.9) / 1e6);
+    std::printf("  %d-thread p10 / 1-thread median %.3f\n", threads, quantile(rate_many, 0.1) / median(rate_one));
+    std::printf("  ratio       p10 / median / p90 of the rounds' ratios %.3f / %.3f / %.3f (", quantile(ratio, 0.1),
+                median(ratio), quantile(ratio, 0.9));
     for (std::size_t k = 0; k < ratio.size(); ++k) std::printf("%s%.3f", k ? ", " : "", ratio[k]);
     std::printf(")\n  jobs        %d 1-thread worlds at once, against 1 alone, in the same rounds: median ratio %.3f\n",
                 threads, median(jobs_ratio));

@@ -37,14 +37,23 @@ string(JSON rounds LENGTH "${json}" ratios)
 if(NOT equal OR NOT rounds EQUAL 2)
   message(FATAL_ERROR "dem-bench --scaling: digests_equal = ${equal}, ${rounds} ratios (expected true, 2): ${json}")
 endif()
-# The two references of the same rounds (independent worlds, streaming pass): ratios of measured
-# rates, so positive and finite on any machine (their values are the machine's; not asserted).
-foreach(key jobs_median_ratio stream_median_ratio)
+# The two references of the same rounds (independent worlds, streaming pass) and the distribution of
+# the rounds (p10, p90): measured rates and their ratios, so positive and finite on any machine
+# (their values are the machine's; not asserted).
+foreach(key jobs_median_ratio stream_median_ratio p10_one p90_one p10_many p90_many p10_ratio p90_ratio
+            p10_many_over_median_one)
   string(JSON value GET "${json}" ${key})
   if(NOT value GREATER 0 OR value MATCHES "nan|inf")
     message(FATAL_ERROR "dem-bench --scaling: ${key} = ${value} (expected a positive number): ${json}")
   endif()
 endforeach()
+# Order statistics of the same rounds: p10 <= median <= p90.
+string(JSON p10 GET "${json}" p10_ratio)
+string(JSON mid GET "${json}" median_ratio)
+string(JSON p90 GET "${json}" p90_ratio)
+if(p10 GREATER mid OR mid GREATER p90)
+  message(FATAL_ERROR "dem-bench --scaling: p10_ratio ${p10} <= median_ratio ${mid} <= p90_ratio ${p90} fails: ${json}")
+endif()
 # The per-system seconds of both worlds over the same rounds: every system of the step has a pair,
 # and the contact pass, which ran in every step of both, took time in both.
 string(JSON systems LENGTH "${json}" systems)
