@@ -10,13 +10,13 @@
 
 namespace sandcell {
 
-/// Tangential force history (DESIGN 3.2).
+/// Tangential force history (docs/physics.md section 2).
 enum class TangentialModel {
   history,      // LIGGGHTS `tangential history`: spring displacement u_t, F_t = -k_t u_t (default)
   incremental,  // stored force, rotated with the contact frame, plus k_t times the increment
 };
 
-/// Rolling resistance (DESIGN 3.3).
+/// Rolling resistance (docs/physics.md section 3).
 enum class RollingModel {
   none,   // no rolling system scheduled, no rolling history allocated
   epsd2,  // LIGGGHTS `rolling_friction epsd2` (default)
@@ -28,15 +28,15 @@ struct ContactSettings {
   bool enabled = true;                               // false: free flight (no broadphase, no forces)
   TangentialModel tangential = TangentialModel::history;
   RollingModel rolling = RollingModel::epsd2;
-  double rolling_damping = 0.0;  // -, eta_r of the epsd dashpot (DESIGN 3.3), >= 0
+  double rolling_damping = 0.0;  // -, eta_r of the epsd dashpot (docs/physics.md section 3), >= 0
   double skin = 0.3e-3;          // m, Verlet skin of the neighbour list, > 0
-  bool liggghts_compat = false;  // drop the affine term D r from relative velocities (DESIGN 3.1)
+  bool liggghts_compat = false;  // drop the affine term D r from relative velocities (docs/physics.md section 1)
   // Steps between spatial sorts of the particle arrays (Morton order of position; 0: never).
   // Sorting keeps neighbours close in memory; it changes array indices, never ids.
   int sort_interval = 0;
 };
 
-/// Effective contact constants of a pair of materials (mixing rule: DESIGN 3.2 for E*, G*;
+/// Effective contact constants of a pair of materials (mixing rule: docs/physics.md section 2 for E*, G*;
 /// arithmetic mean of restitution, friction and rolling friction when the two materials differ).
 struct PairMaterial {
   double e_star = 0.0;    // Pa, 1/E* = (1-nu_i^2)/E_i + (1-nu_j^2)/E_j
@@ -47,13 +47,13 @@ struct PairMaterial {
   double damping_ratio_t = 0.0;   // -, gamma_t / gamma_n = sqrt(S_t / S_n) = sqrt(4 G* / E*)
 };
 
-/// How a cell axis is driven (DESIGN 3.6).
+/// How a cell axis is driven (docs/physics.md section 6).
 enum class AxisControl {
   strain,  // at the set strain rate
   stress,  // by the servo, toward the path's target stress
 };
 
-/// The stress path whose targets the servo recomputes from the measured sigma1 (DESIGN 3.6).
+/// The stress path whose targets the servo recomputes from the measured sigma1 (docs/physics.md section 6).
 enum class StressPath {
   fixed,             // per-axis targets as given (`target`)
   isotropic,         // all three axes to p
@@ -61,7 +61,7 @@ enum class StressPath {
   constant_sigma3_b, // sigma3* = sigma3, sigma2* = b s1 + (1-b) sigma3
 };
 
-/// The periodic servo (DESIGN 3.6). Soil convention: stresses and strain rates compression positive.
+/// The periodic servo (docs/physics.md section 6). Soil convention: stresses and strain rates compression positive.
 /// Axis k of the cell is principal direction k: sigma1 = S_xx, sigma2 = S_yy, sigma3 = S_zz.
 struct ServoSettings {
   bool enabled = false;  // false: no homogenizer or servo scheduled; the cell keeps its rate

@@ -1,5 +1,5 @@
 #pragma once
-// The results file of a run (DESIGN section 4), and its XDMF sidecar for ParaView.
+// The results file of a run (docs/physics.md section 8), and its XDMF sidecar for ParaView.
 //
 // Layout (schema version k_results_schema):
 //   /                       attributes format = "sandcell results", schema_version, software_version,

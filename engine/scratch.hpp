@@ -88,7 +88,7 @@ struct ScratchField;
 
 /// The stress measured by the homogenizer on servo steps, for the servo of the same step.
 struct MeasuredStress {
-  Mat3 stress = Mat3::Zero();  // (3,3) Pa, symmetrized, compression positive (DESIGN 3.5)
+  Mat3 stress = Mat3::Zero();  // (3,3) Pa, symmetrized, compression positive (docs/physics.md section 5)
   std::uint64_t step = ~std::uint64_t{0};  // clock step at which it was measured (none: max)
 };
 

@@ -17,7 +17,7 @@ std::vector<SystemSpec> build_systems(const Model& model);
 /// Checks the model and the initial state; throws std::invalid_argument naming the offending value.
 void validate(const Model& model, const State& state);
 
-/// Checks the servo settings (DESIGN 3.6); throws std::invalid_argument naming the key.
+/// Checks the servo settings (docs/physics.md section 6); throws std::invalid_argument naming the key.
 void validate(const ServoSettings& servo);
 
 /// A run that cannot continue (cell too narrow, instability): the message names the step, the

@@ -1,8 +1,8 @@
 #pragma once
 // hertz_mindlin: the contact pass. Hertz normal force with viscous damping and Mindlin no-slip
-// tangential force with a Coulomb cap (DESIGN 3.2), as LIGGGHTS `model hertz tangential history`,
+// tangential force with a Coulomb cap (docs/physics.md section 2), as LIGGGHTS `model hertz tangential history`,
 // or with an incremental force history (ContactSettings::tangential); plus the rolling resistance
-// evaluator of systems/rolling.hpp when the model has one (DESIGN 3.3).
+// evaluator of systems/rolling.hpp when the model has one (docs/physics.md section 3).
 //
 // Reads the pair list, positions, fluctuating and angular velocities, masses (epsd rolling),
 // materials, the cell and the per-pair constants (radii, R*, m*, image code) of the list. Writes,

@@ -1,5 +1,5 @@
 #pragma once
-// Stress homogenizer (DESIGN 3.5): the cell's stress from the contact forces, and the state measures
+// Stress homogenizer (docs/physics.md section 5): the cell's stress from the contact forces, and the state measures
 // a geomechanics user reads off a test.
 //
 // The system (`Homogenizer`) measures only what the servo needs, only on servo steps
@@ -31,7 +31,7 @@ inline bool servo_due(const ServoSettings& servo, std::uint64_t step) {
   return servo.enabled && step % static_cast<std::uint64_t>(servo.interval) == 0;
 }
 
-/// Stress invariants in the soil convention (compression positive), DESIGN 3.5.
+/// Stress invariants in the soil convention (compression positive), docs/physics.md section 5.
 struct StressInvariants {
   Vec3 principal = Vec3::Zero();  // Pa, s1 >= s2 >= s3
   double p = 0.0;                 // Pa, (s1 + s2 + s3)/3
@@ -78,7 +78,7 @@ struct MeasureOptions {
   double density = 0.0;         // kg/m^3, for the inertial number
 };
 
-/// Every measure of DESIGN 3.5 on the current state (forces as of the last step). Deterministic.
+/// Every measure of docs/physics.md section 5 on the current state (forces as of the last step). Deterministic.
 Measures measure(const Model& model, const State& state, Executor& exec, const MeasureOptions& options = {});
 
 /// Mass-weighted median diameter (50 % passing by mass), m; the same bits for any order of the spheres.

@@ -1,5 +1,5 @@
 #pragma once
-// Rolling resistance (DESIGN 3.3, Ai et al. 2011) as an evaluator of the contact pass.
+// Rolling resistance (docs/physics.md section 3, Ai et al. 2011) as an evaluator of the contact pass.
 //
 // epsd2 (LIGGGHTS `rolling_friction epsd2`): k_r = k_t R*^2; M += k_r w_r dt, capped at mu_r R* |F_n|.
 // epsd (Ai type C): k_r = 2.25 k_n mu_r^2 R*^2, same cap, plus a dashpot C_r w_r below the cap,

@@ -25,7 +25,7 @@ Vec3 path_targets(const ServoSettings& servo, double s1) {
 }
 
 namespace {
-// The path's own stress scale: errors are normalized by |sigma*_k| (DESIGN 3.6), floored at a
+// The path's own stress scale: errors are normalized by |sigma*_k| (docs/physics.md section 6), floored at a
 // thousandth of this scale so a target passing through zero (constant p at eta near 3) cannot
 // divide by zero.
 double stress_scale(const ServoSettings& servo) {

@@ -1,5 +1,5 @@
 #pragma once
-// Periodic servo (DESIGN 3.6, Huang et al. 2014 style): per-axis strain rates of the cell from the
+// Periodic servo (docs/physics.md section 6, Huang et al. 2014 style): per-axis strain rates of the cell from the
 // stress the homogenizer measured in the same step.
 //   stress-controlled axis k: eps_dot_k = clamp(g (sigma*_k - sigma_k)/|sigma*_k|, -max, +max)
 //   strain-controlled axis k: eps_dot_k = the set rate

@@ -1,5 +1,5 @@
 #pragma once
-// Contact (Love-Weber) stress of the periodic cell, DESIGN 3.5: S = (1/V) sum_c f_c (x) r_c with f_c
+// Contact (Love-Weber) stress of the periodic cell, docs/physics.md section 5: S = (1/V) sum_c f_c (x) r_c with f_c
 // the force on i and r_c = x_i - (x_j + H n) the branch vector; compression positive for repulsive
 // contacts. Deterministic reduction over the pair list. The stress homogenizer system builds on it.
 #include "engine/executor.hpp"

@@ -99,7 +99,7 @@ except ImportError as _exc:  # run by an interpreter without the scientific stac
 
 PA = 101325.0  # reference pressure p_a, Pa
 
-# The study's numbers (DESIGN reference), compared against in the report.
+# The study's numbers (docs/physics.md section 7), compared against in the report.
 STUDY = {
     "e_gamma": 0.699, "lambda": 0.0002, "xi": 0.971, "R": 0.96,
     "phi_deg": 22.0, "d0": 0.619, "m": 4.570,

@@ -166,7 +166,7 @@ class Log {
   std::mutex mutex_;
 };
 
-// The series row of DESIGN section 4, from measure().
+// The series row of docs/physics.md section 8, from measure().
 void append_row(ResultsFile& results, const State& state, const Measures& m, double wall) {
   const Mat3& s = m.stress;
   const Mat3& f = m.fabric;

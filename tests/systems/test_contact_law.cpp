@@ -1,4 +1,4 @@
-// Hertz-Mindlin contact law (DESIGN 3.2) against theory: head-on impacts (duration, peak overlap and
+// Hertz-Mindlin contact law (docs/physics.md section 2) against theory: head-on impacts (duration, peak overlap and
 // force, rebound), the damped restitution, oblique impacts in gross sliding, and the tangential
 // spring while sticking (history and incremental forms).
 #include "engine/world.hpp"
@@ -40,7 +40,7 @@ Model model_of(const Material& mat, double dt, TangentialModel tangential = Tang
   return m;
 }
 
-// Effective constants of two identical spheres of radius R (DESIGN 3.2), computed here, not by the
+// Effective constants of two identical spheres of radius R (docs/physics.md section 2), computed here, not by the
 // engine: 1/E* = 2 (1 - nu^2)/E, 1/G* = 2 (2 - nu)/G, R* = R/2, m* = m/2.
 struct Effective {
   double e_star, g_star, r_star, mass, m_star, inertia, beta;
@@ -287,14 +287,14 @@ TEST_CASE("oblique impact in gross sliding: tangential impulse = mu x normal imp
     const double t_c = hertz_duration(p, v_n);
     const Impact r = run_impact(mat, t_c / 400.0, v_n, v_t, 0.25);
     const double tilt = r.max_tilt;
-    // Steps off the Coulomb cap: with e = 1 none. With e < 1, DESIGN 3.2 (as LIGGGHTS `tangential
+    // Steps off the Coulomb cap: with e = 1 none. With e < 1, docs/physics.md section 2 (as LIGGGHTS `tangential
     // history`) compares the spring force k_t |u_t| alone with mu |F_n| and adds the dashpot
     // -gamma_t v_t only below the cap. Where the overlap is small (the onset and the end of the
     // contact) the spring k_t |u_t| ~ delta^(1/2) and F_n lag behind the dashpot ~ delta^(1/4): the
     // spring is below the cap and the dashpot alone gives |F_t| = gamma_t |v_t| >> mu |F_n| (~30 mu
     // |F_n| here, as gamma_t v_t / (mu gamma_n v_n) = sqrt(S_t / S_n) (v_t / v_n) / mu). So: every
-    // contact step is either on the cap to round-off, or has its spring below the cap (the DESIGN
-    // rule); the latter only in short windows at both ends (a fixed span of time, not of steps).
+    // contact step is either on the cap to round-off, or has its spring below the cap (the rule of
+    // docs/physics.md section 2); the latter only in short windows at both ends (a fixed span of time, not of steps).
     std::size_t off_cap = 0, rule_broken = 0;
     double worst_on_cap = 0.0;
     for (std::size_t k = 0; k < r.cap_ratio.size(); ++k) {
@@ -524,9 +524,9 @@ TEST_CASE("history vs incremental: equal at constant normal load, differ as desi
 
 TEST_CASE("the affine velocity D r of a deforming cell enters the contact's relative velocity, unless liggghts_compat") {
   // Two spheres at rest (v~ = 0) in a cell with velocity gradient D = diag(10, -5, 0) 1/s, held
-  // by the contact systems only (no integrator: the positions and the cell stay as set). DESIGN
-  // 3.1: v_rel = (v~_i - v~_j) + D r_ij, so the contact sees the affine motion of the branch vector
-  // r = x_0 - x_1: v_n = (D r).n and a tangential part v_t = D r - v_n n. Then DESIGN 3.2:
+  // by the contact systems only (no integrator: the positions and the cell stay as set). docs/physics.md
+  // section 1: v_rel = (v~_i - v~_j) + D r_ij, so the contact sees the affine motion of the branch vector
+  // r = x_0 - x_1: v_n = (D r).n and a tangential part v_t = D r - v_n n. Then docs/physics.md section 2:
   // F_n = k_n delta - gamma_n v_n, F_t = -k_t u_t - gamma_t v_t with u_t = N v_t dt after N steps.
   const double e_in = 0.5, mu = 0.5, delta0 = 1e-6, dt = 1e-7;
   const Material mat = material(e_in, mu);
@@ -569,7 +569,7 @@ TEST_CASE("the affine velocity D r of a deforming cell enters the contact's rela
   }
 }
 
-TEST_CASE("two materials: the pair takes the mixed constants of DESIGN 3.2, whichever sphere is i") {
+TEST_CASE("two materials: the pair takes the mixed constants of docs/physics.md section 2, whichever sphere is i") {
   // Sphere A (quartz-like) against sphere B (softer, lighter, more elastic, rougher), held at a fixed
   // overlap, approaching at u and sliding past each other: the normal force is k_n delta + gamma_n u
   // with 1/E* = (1-nu_A^2)/E_A + (1-nu_B^2)/E_B, m* = m_A m_B/(m_A+m_B) and beta from the mean

@@ -1,4 +1,4 @@
-// Stress homogenizer and state measures (DESIGN 3.5): the Love-Weber stress of a strained
+// Stress homogenizer and state measures (docs/physics.md section 5): the Love-Weber stress of a strained
 // simple-cubic lattice against the analytic Hertz value, symmetry, the virial of an independent
 // brute-force force computation, and the derived measures (invariants, Lode angle, void ratio,
 // coordination, rattlers).
@@ -58,7 +58,7 @@ TEST_CASE("homogenizer: strained simple-cubic lattice gives the analytic Hertz s
   CHECK(m.rattlers == 0);
   // Fabric of an axis-aligned lattice: 1/3 on the diagonal.
   for (int k = 0; k < 3; ++k) CHECK(m.fabric(k, k) == doctest::Approx(1.0 / 3.0));
-  // Void ratio: V / V_s - 1 with V_s = n^3 4/3 pi R^3 (overlap volume is not subtracted, DESIGN 3.5).
+  // Void ratio: V / V_s - 1 with V_s = n^3 4/3 pi R^3 (overlap volume is not subtracted, docs/physics.md section 5).
   const double vs = n * n * n * 4.0 / 3.0 * std::numbers::pi * r * r * r;
   CHECK(m.void_ratio == doctest::Approx(a.prod() * n * n * n / vs - 1.0).epsilon(1e-14));
   // Equilibrium: every sphere's forces cancel by symmetry (to round-off).

@@ -1,4 +1,4 @@
-// Velocity-Verlet integrator in a deforming periodic cell (DESIGN 3.1, 3.4).
+// Velocity-Verlet integrator in a deforming periodic cell (docs/physics.md section 1, 3.4).
 #include "engine/world.hpp"
 #include "support/scenes.hpp"
 #include "systems/integrate.hpp"

@@ -1,4 +1,4 @@
-// Rolling resistance (DESIGN 3.3, Ai et al. 2011; evaluated inside the hertz_mindlin contact pass): epsd2 (spring k_t R*^2, capped at mu_r R* |F_n|),
+// Rolling resistance (docs/physics.md section 3, Ai et al. 2011; evaluated inside the hertz_mindlin contact pass): epsd2 (spring k_t R*^2, capped at mu_r R* |F_n|),
 // epsd (spring 2.25 k_n mu_r^2 R*^2 plus a dashpot below the cap), cdt (constant torque), none.
 //
 // Scene: two identical spheres held at a fixed overlap along x (n = -x, from sphere 1 to sphere 0,
@@ -60,7 +60,7 @@ Setup held_pair(const Model& model, double w) {
   add_sphere(s.state, model, 1, c + Vec3(a, 0, 0), k_radius, 0);
   s.state.particles.angular_velocity[0] = Vec3(0, 0, w);
   s.state.particles.angular_velocity[1] = Vec3(0, 0, -w);
-  // Expected constants, from DESIGN 3.2 (not from the engine).
+  // Expected constants, from docs/physics.md section 2 (not from the engine).
   const Material& mat = model.materials[0];
   const double e_star = 1.0 / (2.0 * (1.0 - mat.poisson * mat.poisson) / mat.young);
   const double g_star = 1.0 / (2.0 * (2.0 - mat.poisson) / mat.shear());

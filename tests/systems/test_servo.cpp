@@ -1,4 +1,4 @@
-// Periodic servo (DESIGN 3.6): path target formulas against hand-computed values, the control law,
+// Periodic servo (docs/physics.md section 6): path target formulas against hand-computed values, the control law,
 // and closed-loop runs on a small dense sample: isotropic to p0, constant p / constant b, constant
 // sigma3 / constant b.
 #include "engine/world.hpp"
