@@ -978,7 +978,6 @@ Plan make_plan(Config config_in, const Options& options) {
   return plan;
 }
 
-// The files a run writes into the output directory.
 // The files a run writes into the output directory: all of them, or (selected) those of the
 // selected tasks (the shared index.csv and samples.csv are merged, never replaced whole).
 std::vector<fs::path> run_files(const Plan& plan, const std::vector<char>& run_prep, const std::vector<char>& run_test,
@@ -1230,6 +1229,187 @@ static int slurm_main(int argc, const char* const* argv, std::ostream& out, std:
   return submit_slurm_scripts(c, out, err);
 }
 
+// Makes the output directory this run's: refuses to replace an earlier run's files unless asked,
+// takes the directory's lock (held in `dir_lock` for the run), checks a resumed run's config
+// against the one it was made with, applies --overwrite and records the config. Returns 0, or
+// the exit code after a one-line message.
+static int claim_directory(const Plan& plan, const Options& options, bool selected, const std::vector<char>& run_prep,
+                           const std::vector<char>& run_test, FileLock& dir_lock, std::ostream& err) {
+  // Nothing of an earlier run is replaced unless asked: a whole run looks at every file, a run of
+  // selected tasks at theirs.
+  const std::vector<fs::path> files = run_files(plan, run_prep, run_test, selected);
+  if (!options.resume) {
+    std::vector<fs::path> existing;
+    for (const fs::path& f : files)
+      if (fs::exists(f)) existing.push_back(f);
+    if (!existing.empty() && !options.overwrite) {
+      err << "triaxial: --out = " << plan.out.string() << ": holds the results of an earlier run (" << existing.front().string()
+          << (existing.size() > 1 ? " and " + std::to_string(existing.size() - 1) + " more" : "")
+          << "); allowed: --resume to continue it, --overwrite to replace it, or another --out\n";
+      return 2;
+    }
+  }
+  std::error_code ec;
+  fs::create_directories(plan.out, ec);
+  if (ec) {
+    err << "triaxial: --out = " << plan.out.string() << ": cannot create the directory: " << ec.message() << '\n';
+    return 2;
+  }
+  // One live whole run per directory; runs of selected tasks share it with each other (lock.hpp).
+  const fs::path dir_lock_path = plan.out / ".sandcell.lock";
+  try {
+    if (!dir_lock.try_lock(dir_lock_path, selected ? FileLock::Mode::shared : FileLock::Mode::exclusive)) {
+      err << "triaxial: --out = " << plan.out.string() << ": in use by a live run (" << FileLock::holder(dir_lock_path)
+          << "); allowed: wait for it to end, stop it (it checkpoints on SIGTERM), or another --out\n";
+      return 2;
+    }
+  } catch (const std::exception& e) {
+    err << "triaxial: --out = " << plan.out.string() << ": " << e.what() << '\n';
+    return 2;
+  }
+  fs::create_directories(plan.out / ".locks", ec);
+  // The config a directory's run was made with: a resume (or a task) with other physics would give
+  // tests computed half with one setting and half with another.
+  const fs::path stored_config = plan.out / ".config.toml";
+  if ((options.resume || selected) && !options.overwrite && fs::exists(stored_config)) {
+    std::ifstream in(stored_config);
+    std::ostringstream before;
+    before << in.rdbuf();
+    std::vector<std::string> keys;
+    try {
+      keys = changed_keys(before.str(), plan.config.text);
+    } catch (const std::exception& e) {
+      err << "triaxial: " << stored_config.string() << ": cannot read the run's config (" << e.what() << ")\n";
+      return 2;
+    }
+    std::vector<std::string> refused;
+    for (const std::string& k : keys)
+      if (std::find(options.allow_change.begin(), options.allow_change.end(), k) == options.allow_change.end())
+        refused.push_back(k);
+    if (!refused.empty()) {
+      std::string list;
+      for (const std::string& k : refused) list += (list.empty() ? "" : ", ") + k;
+      err << "triaxial: " << plan.config.source << " differs from the run in " << plan.out.string() << " (.config.toml) in "
+          << list << "; allowed: the run's values, changes to output.*, tests.* and shear.max_axial_strain, or "
+          << "--allow-change KEY for a change you mean\n";
+      return 2;
+    }
+  }
+  if (options.overwrite)
+    for (const fs::path& f : files) fs::remove(f, ec);
+  try {
+    if (!fs::exists(stored_config) || options.overwrite || !options.allow_change.empty() || !selected)
+      write_replacing(plan, ".config.toml", [&](std::ostream& o) { o << plan.config.text; });
+  } catch (const std::exception& e) {
+    err << "triaxial: " << e.what() << '\n';
+    return 1;
+  }
+  return 0;
+}
+
+// Runs the selected preparations and tests (all of a whole run) and writes the campaign's index.
+// Returns the exit code: 0 done, 1 a job failed, 3 stopped (a signal or --stop-after).
+static int run_campaign(const Plan& plan, const Options& options, const std::vector<char>& run_prep,
+                        const std::vector<char>& run_test, std::ostream& out) {
+  Log log(out, options.progress);
+  log.line("sandcell triaxial: " + plan.config.source + " -> " + plan.out.string() + ": " +
+           std::to_string(plan.config.tests.size()) + " test(s), " + std::to_string(plan.p0.size()) + " sample(s), " +
+           std::to_string(plan.config.parallel) + " at once x " + std::to_string(plan.job_threads) + " thread(s)");
+  if (options.threads > available_cpus())
+    log.line("warning: --threads " + std::to_string(options.threads) + " > the " + std::to_string(available_cpus()) +
+             " CPUs this process may use (SLURM_CPUS_PER_TASK, else its affinity mask): threads will share cores");
+  // Once per run: it concerns every stage. The speed/accuracy study (docs/study) moved the peak
+  // q/p by 1e-4 from dt = 0.05 to 0.5 t_R; beyond that nothing is measured.
+  if (plan.config.dt_fraction > 0.5)
+    log.line("warning: time.dt_fraction = " + num(plan.config.dt_fraction) +
+             " > 0.5 of the Rayleigh time (the largest the speed/accuracy study validated): contact collisions resolved by few steps");
+  if (plan.config.prepare.dt_fraction > 0.5)
+    log.line("warning: prepare.dt_fraction = " + num(plan.config.prepare.dt_fraction) +
+             " > 0.5 of the Rayleigh time: contact collisions resolved by few steps");
+  Runner runner(plan, log);
+  std::vector<Summary> prep(plan.p0.size()), tests(plan.config.tests.size());
+  std::vector<char> prepared(plan.p0.size(), 0);
+  int failures = 0, interrupted = 0;
+  std::mutex failure_mutex;
+  const auto failed = [&](const std::string& what, const std::exception& e) {
+    std::lock_guard lock(failure_mutex);
+    if (dynamic_cast<const Interrupted*>(&e)) {
+      ++interrupted;
+      log.line(std::string(e.what()) + "; continue with --resume");
+      return;
+    }
+    ++failures;
+    log.line("triaxial: " + what + ": " + e.what());
+  };
+  // Chained preparations run in order of p0, each after the one it starts from.
+  run_parallel(plan.p0.size(), plan.config.prepare.chain ? 1 : plan.config.parallel, [&](std::size_t k) {
+    const std::string name = "prepare-" + p0_tag(plan.p0[k]);
+    if (!run_prep[k]) return;
+    if (stop_requested()) {
+      prep[k].name = name;
+      prep[k].status = "interrupted";
+      return;
+    }
+    try {
+      // A chained preparation needs the lower sample: prepared by an earlier task, or here.
+      if (const double from = plan.chained_from(plan.p0[k]); from > 0.0 && !runner.ensure_sample(from)) {
+        prep[k].name = name;
+        prep[k].status = "skipped (sample-" + p0_tag(from) + " failed)";
+        return;
+      }
+      prepared[k] = runner.prepare(plan.p0[k], prep[k]);
+    } catch (const std::exception& e) {
+      prep[k].name = name;
+      prep[k].status = dynamic_cast<const Interrupted*>(&e) ? "interrupted" : "failed";
+      failed(name, e);
+    }
+  });
+  run_parallel(plan.config.tests.size(), plan.config.parallel, [&](std::size_t k) {
+    const TestSpec& t = plan.config.tests[k];
+    tests[k].name = t.name;
+    if (!run_test[k]) return;
+    if (stop_requested()) {
+      tests[k].status = "interrupted";
+      std::lock_guard lock(failure_mutex);
+      ++interrupted;
+      return;
+    }
+    const std::size_t sample = std::find(plan.p0.begin(), plan.p0.end(), t.p0) - plan.p0.begin();
+    if (run_prep[sample] && !prepared[sample]) {  // its preparation failed in this process
+      tests[k].status = "skipped (sample failed)";
+      return;
+    }
+    try {
+      if (!runner.ensure_sample(t.p0)) {
+        tests[k].status = "skipped (sample failed)";
+        return;
+      }
+      runner.shear(t, tests[k]);
+    } catch (const std::exception& e) {
+      tests[k].status = dynamic_cast<const Interrupted*>(&e) ? "interrupted" : "failed";
+      failed(t.name, e);
+    }
+  });
+  // index.csv and samples.csv cover the whole campaign: what this process did, and for the rest
+  // what the directory holds (other tasks' finished samples and tests), merged under a lock.
+  try {
+    FileLock index_lock;
+    index_lock.lock(plan.out / ".locks" / "index.csv.lock", FileLock::Mode::exclusive);
+    for (std::size_t k = 0; k < prep.size(); ++k)
+      if (!run_prep[k] || prep[k].status == "not run") {
+        if (fs::exists(runner.sample_path(plan.p0[k]))) prep[k] = runner.sample_summary(plan.p0[k]);
+        else prep[k].name = "prepare-" + p0_tag(plan.p0[k]);
+      }
+    for (std::size_t k = 0; k < tests.size(); ++k)
+      if (!run_test[k]) tests[k] = runner.test_summary_on_disk(plan.config.tests[k]);
+    write_index(plan, prep, tests);
+  } catch (const std::exception& e) {
+    failed("index.csv", e);
+  }
+  log.line("results: " + (plan.out / "index.csv").string() + (failures ? " (" + std::to_string(failures) + " failed)" : ""));
+  return failures ? 1 : interrupted ? 3 : 0;
+}
+
 int triaxial_main(int argc, const char* const* argv, std::ostream& out, std::ostream& err) {
   // `triaxial analyze RESULTS... [--out DIR]`: the critical-state and dilatancy analysis (analyze.py).
   if (argc >= 2 && std::string(argv[1]) == "analyze") return script_main("analyze", argc - 1, argv + 1, err);
@@ -1357,175 +1537,10 @@ int triaxial_main(int argc, const char* const* argv, std::ostream& out, std::ost
     for (std::size_t t : tasks) (t < n_prep ? run_prep[t] : run_test[t - n_prep]) = 1;
   }
 
-  // Nothing of an earlier run is replaced unless asked: a whole run looks at every file, a run of
-  // selected tasks at theirs.
-  const std::vector<fs::path> files = run_files(plan, run_prep, run_test, selected);
-  if (!options.resume) {
-    std::vector<fs::path> existing;
-    for (const fs::path& f : files)
-      if (fs::exists(f)) existing.push_back(f);
-    if (!existing.empty() && !options.overwrite) {
-      err << "triaxial: --out = " << plan.out.string() << ": holds the results of an earlier run (" << existing.front().string()
-          << (existing.size() > 1 ? " and " + std::to_string(existing.size() - 1) + " more" : "")
-          << "); allowed: --resume to continue it, --overwrite to replace it, or another --out\n";
-      return 2;
-    }
-  }
-  std::error_code ec;
-  fs::create_directories(plan.out, ec);
-  if (ec) {
-    err << "triaxial: --out = " << plan.out.string() << ": cannot create the directory: " << ec.message() << '\n';
-    return 2;
-  }
-  // One live whole run per directory; runs of selected tasks share it with each other (lock.hpp).
-  FileLock dir_lock;
-  const fs::path dir_lock_path = plan.out / ".sandcell.lock";
-  try {
-    if (!dir_lock.try_lock(dir_lock_path, selected ? FileLock::Mode::shared : FileLock::Mode::exclusive)) {
-      err << "triaxial: --out = " << plan.out.string() << ": in use by a live run (" << FileLock::holder(dir_lock_path)
-          << "); allowed: wait for it to end, stop it (it checkpoints on SIGTERM), or another --out\n";
-      return 2;
-    }
-  } catch (const std::exception& e) {
-    err << "triaxial: --out = " << plan.out.string() << ": " << e.what() << '\n';
-    return 2;
-  }
-  fs::create_directories(plan.out / ".locks", ec);
-  // The config a directory's run was made with: a resume (or a task) with other physics would give
-  // tests computed half with one setting and half with another.
-  const fs::path stored_config = plan.out / ".config.toml";
-  if ((options.resume || selected) && !options.overwrite && fs::exists(stored_config)) {
-    std::ifstream in(stored_config);
-    std::ostringstream before;
-    before << in.rdbuf();
-    std::vector<std::string> keys;
-    try {
-      keys = changed_keys(before.str(), plan.config.text);
-    } catch (const std::exception& e) {
-      err << "triaxial: " << stored_config.string() << ": cannot read the run's config (" << e.what() << ")\n";
-      return 2;
-    }
-    std::vector<std::string> refused;
-    for (const std::string& k : keys)
-      if (std::find(options.allow_change.begin(), options.allow_change.end(), k) == options.allow_change.end())
-        refused.push_back(k);
-    if (!refused.empty()) {
-      std::string list;
-      for (const std::string& k : refused) list += (list.empty() ? "" : ", ") + k;
-      err << "triaxial: " << plan.config.source << " differs from the run in " << plan.out.string() << " (.config.toml) in "
-          << list << "; allowed: the run's values, changes to output.*, tests.* and shear.max_axial_strain, or "
-          << "--allow-change KEY for a change you mean\n";
-      return 2;
-    }
-  }
-  if (options.overwrite)
-    for (const fs::path& f : files) fs::remove(f, ec);
-  try {
-    if (!fs::exists(stored_config) || options.overwrite || !options.allow_change.empty() || !selected)
-      write_replacing(plan, ".config.toml", [&](std::ostream& o) { o << plan.config.text; });
-  } catch (const std::exception& e) {
-    err << "triaxial: " << e.what() << '\n';
-    return 1;
-  }
+  FileLock dir_lock;  // held until the campaign ends
+  if (const int code = claim_directory(plan, options, selected, run_prep, run_test, dir_lock, err); code != 0) return code;
   install_stop_handlers();
-
-  Log log(out, options.progress);
-  log.line("sandcell triaxial: " + plan.config.source + " -> " + plan.out.string() + ": " +
-           std::to_string(plan.config.tests.size()) + " test(s), " + std::to_string(plan.p0.size()) + " sample(s), " +
-           std::to_string(plan.config.parallel) + " at once x " + std::to_string(plan.job_threads) + " thread(s)");
-  if (options.threads > available_cpus())
-    log.line("warning: --threads " + std::to_string(options.threads) + " > the " + std::to_string(available_cpus()) +
-             " CPUs this process may use (SLURM_CPUS_PER_TASK, else its affinity mask): threads will share cores");
-  // Once per run: it concerns every stage. The speed/accuracy study (docs/study) moved the peak
-  // q/p by 1e-4 from dt = 0.05 to 0.5 t_R; beyond that nothing is measured.
-  if (plan.config.dt_fraction > 0.5)
-    log.line("warning: time.dt_fraction = " + num(plan.config.dt_fraction) +
-             " > 0.5 of the Rayleigh time (the largest the speed/accuracy study validated): contact collisions resolved by few steps");
-  if (plan.config.prepare.dt_fraction > 0.5)
-    log.line("warning: prepare.dt_fraction = " + num(plan.config.prepare.dt_fraction) +
-             " > 0.5 of the Rayleigh time: contact collisions resolved by few steps");
-  Runner runner(plan, log);
-  std::vector<Summary> prep(plan.p0.size()), tests(plan.config.tests.size());
-  std::vector<char> prepared(plan.p0.size(), 0);
-  int failures = 0, interrupted = 0;
-  std::mutex failure_mutex;
-  const auto failed = [&](const std::string& what, const std::exception& e) {
-    std::lock_guard lock(failure_mutex);
-    if (dynamic_cast<const Interrupted*>(&e)) {
-      ++interrupted;
-      log.line(std::string(e.what()) + "; continue with --resume");
-      return;
-    }
-    ++failures;
-    log.line("triaxial: " + what + ": " + e.what());
-  };
-  // Chained preparations run in order of p0, each after the one it starts from.
-  run_parallel(plan.p0.size(), plan.config.prepare.chain ? 1 : plan.config.parallel, [&](std::size_t k) {
-    const std::string name = "prepare-" + p0_tag(plan.p0[k]);
-    if (!run_prep[k]) return;
-    if (stop_requested()) {
-      prep[k].name = name;
-      prep[k].status = "interrupted";
-      return;
-    }
-    try {
-      // A chained preparation needs the lower sample: prepared by an earlier task, or here.
-      if (const double from = plan.chained_from(plan.p0[k]); from > 0.0 && !runner.ensure_sample(from)) {
-        prep[k].name = name;
-        prep[k].status = "skipped (sample-" + p0_tag(from) + " failed)";
-        return;
-      }
-      prepared[k] = runner.prepare(plan.p0[k], prep[k]);
-    } catch (const std::exception& e) {
-      prep[k].name = name;
-      prep[k].status = dynamic_cast<const Interrupted*>(&e) ? "interrupted" : "failed";
-      failed(name, e);
-    }
-  });
-  run_parallel(plan.config.tests.size(), plan.config.parallel, [&](std::size_t k) {
-    const TestSpec& t = plan.config.tests[k];
-    tests[k].name = t.name;
-    if (!run_test[k]) return;
-    if (stop_requested()) {
-      tests[k].status = "interrupted";
-      std::lock_guard lock(failure_mutex);
-      ++interrupted;
-      return;
-    }
-    const std::size_t sample = std::find(plan.p0.begin(), plan.p0.end(), t.p0) - plan.p0.begin();
-    if (run_prep[sample] && !prepared[sample]) {  // its preparation failed in this process
-      tests[k].status = "skipped (sample failed)";
-      return;
-    }
-    try {
-      if (!runner.ensure_sample(t.p0)) {
-        tests[k].status = "skipped (sample failed)";
-        return;
-      }
-      runner.shear(t, tests[k]);
-    } catch (const std::exception& e) {
-      tests[k].status = dynamic_cast<const Interrupted*>(&e) ? "interrupted" : "failed";
-      failed(t.name, e);
-    }
-  });
-  // index.csv and samples.csv cover the whole campaign: what this process did, and for the rest
-  // what the directory holds (other tasks' finished samples and tests), merged under a lock.
-  try {
-    FileLock index_lock;
-    index_lock.lock(plan.out / ".locks" / "index.csv.lock", FileLock::Mode::exclusive);
-    for (std::size_t k = 0; k < prep.size(); ++k)
-      if (!run_prep[k] || prep[k].status == "not run") {
-        if (fs::exists(runner.sample_path(plan.p0[k]))) prep[k] = runner.sample_summary(plan.p0[k]);
-        else prep[k].name = "prepare-" + p0_tag(plan.p0[k]);
-      }
-    for (std::size_t k = 0; k < tests.size(); ++k)
-      if (!run_test[k]) tests[k] = runner.test_summary_on_disk(plan.config.tests[k]);
-    write_index(plan, prep, tests);
-  } catch (const std::exception& e) {
-    failed("index.csv", e);
-  }
-  log.line("results: " + (plan.out / "index.csv").string() + (failures ? " (" + std::to_string(failures) + " failed)" : ""));
-  return failures ? 1 : interrupted ? 3 : 0;
+  return run_campaign(plan, options, run_prep, run_test, out);
 }
 
 }  // namespace sandcell::triaxial
