@@ -261,7 +261,7 @@ class AccuracyWatch {
   // scatter from I = 1e-5 up to 3e-3 and the peak q/p 0.05-0.5 too high at 1e-2; the limit is 3e-3
   // plus 5 % for the fluctuation of the measured p between servo updates. An unbalanced force
   // ratio above 0.1 means forces far from balance; the kinetic energy reached 4 % of the stored
-  // elastic energy in the fast protocol's validation (19,436 spheres at I = 3e-3, README), whose
+  // elastic energy in the fast protocol's validation (19,436 spheres at I = 3e-3, docs/reproducing-the-study.md), whose
   // peak and dilatancy errors stayed within the seed scatter and whose critical q/p rose by 2 %:
   // 5 % is the limit; Hertz theory assumes overlaps small beside the radius.
   static constexpr Limit k_limits[k_count] = {
@@ -899,7 +899,7 @@ Plan make_plan(Config config_in, const Options& options) {
   m.dt = config.dt_fraction * rayleigh_time(plan.r_min, config.material);
   plan.servo_time = std::max(m.dt, k_servo_time_fraction * rayleigh_time(plan.r_min, config.material));
   // The preparation may take its own step: frictionless, it has no tangential or rolling springs,
-  // whose stiff rotational modes bound the shearing step at high pressure (README).
+  // whose stiff rotational modes bound the shearing step at high pressure (docs/reproducing-the-study.md).
   plan.prepare_dt = config.prepare.dt_fraction > 0.0 ? config.prepare.dt_fraction * rayleigh_time(plan.r_min, config.material)
                                                      : m.dt;
   plan.prepare_servo_time = std::max(plan.prepare_dt, k_servo_time_fraction * rayleigh_time(plan.r_min, config.material));
