@@ -68,6 +68,18 @@ void for_each_particle_field(P& p, Fn&& fn) {
   fn(FieldInfo{"reference_position", "m", "broadphase", Component::particle_reference}, p.reference_position);
 }
 
+/// The components of the per-contact histories below (for access declarations).
+inline constexpr Component k_contact_history_components[] = {Component::contact_tangential, Component::contact_rolling};
+
+/// Calls fn(info, vector) for every per-contact history the scene allocates, in a fixed order: the
+/// arrays the contact laws keep per pair (systems/laws/), which a pair carries from one neighbour
+/// list to the next.
+template <class C, class Fn>
+void for_each_contact_history(C& c, Fn&& fn) {
+  fn(FieldInfo{"tangential", "m", "contact law", Component::contact_tangential}, c.tangential);
+  if (c.has_rolling) fn(FieldInfo{"rolling", "N m", "rolling", Component::contact_rolling}, c.rolling);
+}
+
 /// Calls fn(info, vector) for every contact array that the scene allocates, in a fixed order.
 template <class C, class Fn>
 void for_each_contact_field(C& c, Fn&& fn) {
@@ -79,8 +91,7 @@ void for_each_contact_field(C& c, Fn&& fn) {
   fn(FieldInfo{"force", "N", "contact law", Component::contact_forces}, c.forces.force);
   fn(FieldInfo{"torque_i", "N m", "contact law", Component::contact_forces}, c.forces.torque_i);
   fn(FieldInfo{"torque_j", "N m", "contact law", Component::contact_forces}, c.forces.torque_j);
-  fn(FieldInfo{"tangential", "m", "contact law", Component::contact_tangential}, c.tangential);
-  if (c.has_rolling) fn(FieldInfo{"rolling", "N m", "rolling", Component::contact_rolling}, c.rolling);
+  for_each_contact_history(c, fn);
 }
 
 /// Resizes every particle array to n (new entries value-initialised).

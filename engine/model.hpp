@@ -4,6 +4,8 @@
 #include "components/types.hpp"
 
 #include <array>
+#include <map>
+#include <string>
 
 #include <cstdint>
 #include <vector>
@@ -26,6 +28,10 @@ enum class RollingModel {
 
 struct ContactSettings {
   bool enabled = true;                               // false: free flight (no broadphase, no forces)
+  std::string normal = "hertz";  // the normal law, by its registered name (docs/physics.md section 2):
+                                 // hertz, hooke
+  // Named parameters of the chosen laws, SI units (e.g. hooke: characteristic_velocity, m/s).
+  std::map<std::string, double> parameters;
   TangentialModel tangential = TangentialModel::history;
   RollingModel rolling = RollingModel::epsd2;
   double rolling_damping = 0.0;  // -, eta_r of the epsd dashpot (docs/physics.md section 3), >= 0

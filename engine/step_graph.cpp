@@ -10,12 +10,12 @@ namespace sandcell {
 
 namespace {
 // Runs system k with its access scope and adds its wall time to seconds[k].
-void timed_run(const SystemSpec& system, const AccessSets& access, double& seconds, const Model& model,
-               State& state, Scratch& scratch, Executor& exec) {
+void timed_run(const SystemRun& run, const AccessSets& access, double& seconds, const Model& model, State& state,
+               Scratch& scratch, Executor& exec) {
   const auto t0 = std::chrono::steady_clock::now();
   {
     AccessScope scope(access);
-    system.run(model, state, scratch, exec);
+    run(model, state, scratch, exec);
   }
   seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 }
@@ -70,7 +70,7 @@ StepGraph::StepGraph(std::vector<SystemSpec> systems, Executor& exec) : systems_
     for (std::size_t k = 0; k < n; ++k) {
       flow_->nodes.push_back(std::make_unique<tbb::flow::continue_node<tbb::flow::continue_msg>>(
           flow_->graph, [this, k](const tbb::flow::continue_msg&) {
-            timed_run(systems_[k], access_[k], seconds_[k], *flow_->model, *flow_->state, *flow_->scratch, exec_);
+            timed_run(systems_[k].run, access_[k], seconds_[k], *flow_->model, *flow_->state, *flow_->scratch, exec_);
           }));
     }
     std::vector<bool> has_pred(n, false);
@@ -88,7 +88,7 @@ StepGraph::~StepGraph() = default;
 void StepGraph::run(const Model& model, State& state, Scratch& scratch) {
   if (!flow_) {
     for (std::size_t k = 0; k < systems_.size(); ++k)
-      timed_run(systems_[k], access_[k], seconds_[k], model, state, scratch, exec_);
+      timed_run(systems_[k].run, access_[k], seconds_[k], model, state, scratch, exec_);
     return;
   }
   flow_->model = &model;
@@ -101,7 +101,11 @@ void StepGraph::run(const Model& model, State& state, Scratch& scratch) {
 }
 
 void StepGraph::run_one(std::size_t k, const Model& model, State& state, Scratch& scratch) {
-  timed_run(systems_[k], access_[k], seconds_[k], model, state, scratch, exec_);
+  timed_run(systems_[k].run, access_[k], seconds_[k], model, state, scratch, exec_);
+}
+
+void StepGraph::run_hook(std::size_t k, const SystemRun& hook, const Model& model, State& state, Scratch& scratch) {
+  timed_run(hook, access_[k], seconds_[k], model, state, scratch, exec_);
 }
 
 std::size_t StepGraph::find(std::string_view name) const {
@@ -132,9 +136,14 @@ std::string StepGraph::describe() const {
 }
 
 void run_system(const SystemSpec& system, const Model& model, State& state, Scratch& scratch, Executor& exec) {
+  run_hook(system, system.run, model, state, scratch, exec);
+}
+
+void run_hook(const SystemSpec& system, const SystemRun& hook, const Model& model, State& state, Scratch& scratch,
+              Executor& exec) {
   const AccessSets sets{system.name, system.reads, system.writes};
   AccessScope scope(sets);
-  system.run(model, state, scratch, exec);
+  hook(model, state, scratch, exec);
 }
 
 }  // namespace sandcell

@@ -27,6 +27,8 @@ class StepGraph {
   void run(const Model& model, State& state, Scratch& scratch);
   /// Runs system k alone (its time counted in timers()), e.g. a kick left over from the last step.
   void run_one(std::size_t k, const Model& model, State& state, Scratch& scratch);
+  /// Runs `hook` of system k (e.g. its flush) under its access sets, its time counted in timers().
+  void run_hook(std::size_t k, const SystemRun& hook, const Model& model, State& state, Scratch& scratch);
 
   std::size_t size() const { return systems_.size(); }
   const SystemSpec& system(std::size_t k) const { return systems_[k]; }

@@ -1,6 +1,20 @@
 #pragma once
-// What a system is, to the engine: a name, declared read and write sets, and one entry point
+// What a system is, to the engine: a name, declared read and write sets, one entry point per step
 //   static void run(const Model&, State&, Scratch&, Executor&);
+// and, optionally, its part in the rest of World's protocol (all static members, detected by
+// make_system(); a system without them takes no part):
+//   static void prepare(const Model&, State&);          allocate what the model needs in the state
+//                                                      (e.g. a contact law's history), before anything runs
+//   static void setup(const Model&, State&, Scratch&, Executor&);
+//                                                      the forces of the initial configuration, history
+//                                                      frozen (LAMMPS `setup`), in reference order
+//   static void restore(const Model&, State&, Scratch&); rebuild its scratch from a state that already
+//                                                      holds its list and forces (a checkpoint)
+//   static void flush(const Model&, State&, Scratch&, Executor&);
+//                                                      finish work left for the next step (below)
+//   static constexpr std::string_view deferred_to = "..."; with flush: the system may leave its work
+//                                                      to that system's next run (see World::step_until)
+// The setup, restore and flush hooks run under the system's access sets like `run`.
 // A system type provides `name`, `reads`, `writes` (initializer-list masks) and `run`;
 // make_system() turns it into the type-erased record the step graph schedules.
 #include "engine/access.hpp"
@@ -11,22 +25,42 @@
 
 #include <functional>
 #include <string>
+#include <string_view>
 
 namespace sandcell {
+
+using SystemRun = std::function<void(const Model&, State&, Scratch&, Executor&)>;
 
 struct SystemSpec {
   std::string name;
   ComponentMask reads = 0;
   ComponentMask writes = 0;
-  std::function<void(const Model&, State&, Scratch&, Executor&)> run;
+  SystemRun run;
+  // Optional parts of World's protocol (engine/system.hpp above); empty: none.
+  std::function<void(const Model&, State&)> prepare;
+  SystemRun setup;
+  std::function<void(const Model&, State&, Scratch&)> restore;
+  SystemRun flush;
+  std::string deferred_to;  // with flush: the system whose next run absorbs this one's pending work
 };
 
 template <class S>
 SystemSpec make_system() {
-  return SystemSpec{std::string(S::name), S::reads, S::writes, &S::run};
+  SystemSpec spec{std::string(S::name), S::reads, S::writes, &S::run, {}, {}, {}, {}, {}};
+  if constexpr (requires { &S::prepare; }) spec.prepare = &S::prepare;
+  if constexpr (requires { &S::setup; }) spec.setup = &S::setup;
+  if constexpr (requires { &S::restore; }) spec.restore = &S::restore;
+  if constexpr (requires { &S::flush; }) {
+    spec.flush = &S::flush;
+    spec.deferred_to = std::string(S::deferred_to);
+  }
+  return spec;
 }
 
 /// Runs one system outside a graph, with its access sets enforced (for tests and tools).
 void run_system(const SystemSpec& system, const Model& model, State& state, Scratch& scratch, Executor& exec);
+/// Runs `hook` of `system` with the system's access sets enforced.
+void run_hook(const SystemSpec& system, const SystemRun& hook, const Model& model, State& state, Scratch& scratch,
+              Executor& exec);
 
 }  // namespace sandcell

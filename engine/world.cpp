@@ -1,37 +1,10 @@
 #include "engine/world.hpp"
 
-#include "systems/broadphase.hpp"
-#include "systems/force_gather.hpp"
-#include "systems/hertz_mindlin.hpp"
-#include "systems/homogenizer.hpp"
-#include "systems/integrate.hpp"
-#include "systems/servo.hpp"
-#include "systems/spatial_sort.hpp"
-#include "systems/wrap.hpp"
-
 #include <cmath>
 #include <cstdlib>
 #include <string>
 
 namespace sandcell {
-
-std::vector<SystemSpec> build_systems(const Model& model) {
-  std::vector<SystemSpec> systems;
-  systems.push_back(make_system<IntegrateInitial>());
-  if (!model.contact.enabled) systems.push_back(make_system<Wrap>());
-  if (model.contact.enabled) {
-    if (model.contact.sort_interval > 0) systems.push_back(make_system<SpatialSort>());
-    systems.push_back(make_system<Broadphase>());
-    systems.push_back(make_system<HertzMindlin>());
-    systems.push_back(make_system<ForceGather>());
-  }
-  if (model.servo.enabled) {
-    systems.push_back(make_system<Homogenizer>());
-    systems.push_back(make_system<Servo>());
-  }
-  systems.push_back(make_system<IntegrateFinal>());
-  return systems;
-}
 
 void validate(const ServoSettings& servo) {
   const auto fail = [](const std::string& key, double value, const std::string& allowed) {
@@ -141,50 +114,47 @@ Model finalized(Model m) {
   m.finalize();
   return m;
 }
-State prepared(State s, const Model& m) {
+State validated(State s, const Model& m) {
   validate(m, s);
-  // Only the laws with a stored moment keep one (cdt has none).
-  s.contacts.has_rolling = m.contact.enabled &&
-                           (m.contact.rolling == RollingModel::epsd2 || m.contact.rolling == RollingModel::epsd);
-  if (!s.contacts.has_rolling) s.contacts.rolling.clear();
   if (s.particles.reference_position.size() != s.particles.size()) s.particles.reference_position.resize(s.particles.size());
   return s;
 }
 }  // namespace
 
-World::World(Model model, State state, ExecutorConfig exec, bool initial_forces)
-    : World(model, std::move(state), build_systems(model), exec, initial_forces) {}
-
 World::World(Model model, State state, std::vector<SystemSpec> systems, ExecutorConfig exec, bool initial_forces)
     : model_(finalized(std::move(model))),
-      state_(prepared(std::move(state), model_)),
+      state_(validated(std::move(state), model_)),
       exec_(exec),
       graph_(std::move(systems), exec_),
-      defer_kick_(can_defer_kick(graph_)) {
-  if (graph_.find(Broadphase::name) == graph_.size()) return;
+      batching_(can_batch(graph_)) {
+  for (std::size_t k = 0; k < graph_.size(); ++k)
+    if (graph_.system(k).prepare) graph_.system(k).prepare(model_, state_);
   if (!initial_forces) {
     // The state holds its list and the forces of its last step (a checkpoint, or the previous
-    // stage of a test): only the gather index, which is scratch, is rebuilt from the pair list.
-    // Nothing else is recomputed, so continuing from here is bitwise the same as never stopping.
-    rebuild_gather_index(state_.contacts.pairs, state_.particles.size(), scratch_.gather);
-    rebuild_pair_constants(state_.contacts.pairs, state_.particles.radius, state_.particles.mass, scratch_.pair);
+    // stage of a test): the systems rebuild only their scratch from it (e.g. the gather index from
+    // the pair list). Nothing else is recomputed, so continuing from here is bitwise the same as
+    // never stopping.
+    for (std::size_t k = 0; k < graph_.size(); ++k) {
+      const SystemSpec& s = graph_.system(k);
+      if (!s.restore) continue;
+      const AccessSets sets{s.name, s.reads, s.writes};
+      AccessScope scope(sets);
+      s.restore(model_, state_, scratch_);
+    }
     return;
   }
-  // Forces of the initial configuration (LAMMPS `setup`): list build, contact law, gather, with
-  // contact history frozen. Only the systems present in the graph are run.
-  scratch_.setup = true;
-  build_neighbor_list(model_, state_, scratch_, exec_);
-  check_health();
-  for (std::string_view name : {HertzMindlin::name, ForceGather::name}) {
-    const std::size_t k = graph_.find(name);
-    if (k < graph_.size()) run_system(graph_.system(k), model_, state_, scratch_, exec_);
+  // Forces of the initial configuration (LAMMPS `setup`): the systems' setup hooks in reference
+  // order (list build, contact law with history frozen, gather).
+  for (std::size_t k = 0; k < graph_.size(); ++k) {
+    const SystemSpec& s = graph_.system(k);
+    if (!s.setup) continue;
+    run_hook(s, s.setup, model_, state_, scratch_, exec_);
+    check_health();
   }
-  scratch_.setup = false;
 }
 
 void World::check_health() const {
-  if (!scratch_.broadphase.error.empty())
-    throw SimulationError("step " + std::to_string(state_.clock.step) + ": " + scratch_.broadphase.error);
+  if (!scratch_.error.empty()) throw SimulationError("step " + std::to_string(state_.clock.step) + ": " + scratch_.error);
 }
 
 void World::step(std::uint64_t n) {
@@ -194,7 +164,7 @@ void World::step(std::uint64_t n) {
 std::uint64_t World::step_until(std::uint64_t n, FunctionRef<bool(Cell&, const Clock&)> stop) {
   std::uint64_t done = 0;
   try {
-    scratch_.defer_final_kick = defer_kick_;
+    scratch_.batching = batching_;
     while (done < n) {
       graph_.run(model_, state_, scratch_);
       ++state_.clock.step;
@@ -204,33 +174,38 @@ std::uint64_t World::step_until(std::uint64_t n, FunctionRef<bool(Cell&, const C
       if (stop(state_.cell, state_.clock)) break;
     }
   } catch (...) {
-    finish_kick();  // the state handed back is the end of a step, as without the deferral
+    flush();  // the state handed back is the end of a step, as without the deferral
     throw;
   }
-  finish_kick();
+  flush();
   return done;
 }
 
-void World::finish_kick() {
-  scratch_.defer_final_kick = false;
-  if (!scratch_.kick_pending) return;
-  scratch_.kick_pending = false;
-  graph_.run_one(graph_.find(IntegrateFinal::name), model_, state_, scratch_);
+void World::flush() {
+  scratch_.batching = false;
+  for (std::size_t k = 0; k < graph_.size(); ++k)
+    if (graph_.system(k).flush) graph_.run_hook(k, graph_.system(k).flush, model_, state_, scratch_);
 }
 
-bool World::can_defer_kick(const StepGraph& graph) {
-  // Deferring integrate_final's kick to the next integrate_initial is exact only if nothing runs
-  // between them: integrate_final must come after every other system of the step, and
-  // integrate_initial before every other (a system unordered with them does not conflict with
-  // them, so it neither reads the velocities nor writes what the kicks read).
+bool World::can_batch(const StepGraph& graph) {
+  // Leaving a system's work to the next run of the system it names is exact only if nothing runs
+  // between them: the deferring system must come after every other system of the step, and the
+  // absorbing one before every other (a system unordered with them does not conflict with them,
+  // so it neither reads nor writes what they touch).
   const std::size_t n = graph.size();
-  const std::size_t first = graph.find(IntegrateInitial::name), last = graph.find(IntegrateFinal::name);
-  if (first == n || last == n) return false;
-  for (std::size_t k = 0; k < n; ++k) {
-    if (k != first && graph.ordered(k, first)) return false;
-    if (k != last && graph.ordered(last, k)) return false;
+  bool any = false;
+  for (std::size_t last = 0; last < n; ++last) {
+    const SystemSpec& s = graph.system(last);
+    if (!s.flush || s.deferred_to.empty()) continue;
+    const std::size_t first = graph.find(s.deferred_to);
+    if (first == n) return false;
+    for (std::size_t k = 0; k < n; ++k) {
+      if (k != first && graph.ordered(k, first)) return false;
+      if (k != last && graph.ordered(last, k)) return false;
+    }
+    any = true;
   }
-  return true;
+  return any;
 }
 
 }  // namespace sandcell

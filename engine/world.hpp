@@ -1,6 +1,8 @@
 #pragma once
-// World: one scene = Model + State + Scratch + Executor + the step graph built from the systems the
-// scene needs. The list of systems, in reference order, is made in one place: build_systems().
+// World: one scene = Model + State + Scratch + Executor + the step graph built from the list of
+// systems it is given (systems/catalogue.hpp makes the list a model needs). The engine knows the
+// systems only through SystemSpec: their access sets, their step, and their optional part in
+// scene setup, restore and deferred work (engine/system.hpp).
 #include "engine/function_ref.hpp"
 #include "engine/step_graph.hpp"
 
@@ -9,10 +11,6 @@
 #include <vector>
 
 namespace sandcell {
-
-/// The systems a scene needs, in reference order. Systems the model does not use are not listed
-/// (and so neither scheduled nor allocated for).
-std::vector<SystemSpec> build_systems(const Model& model);
 
 /// Checks the model and the initial state; throws std::invalid_argument naming the offending value.
 void validate(const Model& model, const State& state);
@@ -28,11 +26,11 @@ struct SimulationError : std::runtime_error {
 
 class World {
  public:
-  /// Builds the scene with build_systems(model). Unless `initial_forces` is false (a state that
-  /// already holds its forces, e.g. from a checkpoint), the neighbour list and the forces of the
-  /// initial configuration are computed first, without touching contact history.
-  World(Model model, State state, ExecutorConfig exec = {}, bool initial_forces = true);
-  /// Same, with an explicit system list (tests, custom scenes).
+  /// Builds the scene from `systems`, in reference order (systems/catalogue.hpp: the list a model
+  /// needs). Each system's `prepare` hook runs first. Unless `initial_forces` is false (a state that
+  /// already holds its forces, e.g. from a checkpoint, whose systems then `restore` their scratch),
+  /// the systems' `setup` hooks compute the forces of the initial configuration (the neighbour list,
+  /// the contact forces and their sums) without touching contact history.
   World(Model model, State state, std::vector<SystemSpec> systems, ExecutorConfig exec = {},
         bool initial_forces = true);
 
@@ -42,10 +40,11 @@ class World {
   /// Advances at most n steps, stopping after the first step for which stop(cell, clock) returns
   /// true; returns the number of steps done. The hook sees only the cell and the clock, and may
   /// set the cell's strain rate for the next step (e.g. a deformation at an engineering rate).
-  /// Inside one call, the final half kick of each step is left to the next step's first pass
-  /// (Scratch::defer_final_kick, when defers_final_kick()), which the particles' velocities are
-  /// then waiting for: hence no hook on the particles. The state seen after the call is bitwise
-  /// that of one step per call; the fewer calls, the fewer passes over the particles.
+  /// Inside one call, a system that declares `deferred_to` may leave its work to the next step
+  /// (Scratch::batching, when defers_work()): the integrator's final half kick is applied by the
+  /// next step's first pass, which the particles' velocities are then waiting for: hence no hook
+  /// on the particles. Before returning, World calls the `flush` of such systems, so the state seen
+  /// after the call is bitwise that of one step per call; the fewer calls, the fewer passes.
   std::uint64_t step_until(std::uint64_t n, FunctionRef<bool(Cell&, const Clock&)> stop);
 
   const Model& model() const { return model_; }
@@ -54,22 +53,23 @@ class World {
   const Scratch& scratch() const { return scratch_; }
   Executor& executor() { return exec_; }
   const StepGraph& graph() const { return graph_; }
-  /// Whether step(n) leaves each final half kick but the last to the next step's first pass.
-  bool defers_final_kick() const { return defer_kick_; }
+  /// Whether step(n) lets systems leave work to the next step (each final half kick but the
+  /// last, with the catalogue's integrator).
+  bool defers_work() const { return batching_; }
   /// Zeroes the per-system timers (e.g. before a timed loop).
   void reset_timers() { graph_.reset_timers(); }
 
  private:
   void check_health() const;
-  void finish_kick();
-  static bool can_defer_kick(const StepGraph& graph);
+  void flush();
+  static bool can_batch(const StepGraph& graph);
 
   Model model_;
   State state_;
   Scratch scratch_;
   Executor exec_;
   StepGraph graph_;
-  bool defer_kick_ = false;  // integrate_initial runs first and integrate_final last (can_defer_kick)
+  bool batching_ = false;  // every deferring system runs last and the one it defers to first (can_batch)
 };
 
 }  // namespace sandcell

@@ -82,12 +82,16 @@ void build_neighbor_list(const Model& model, State& state, Scratch& scratch, Exe
   const auto& radius = state.read<Component::particle_radius>();
   const Cell& cell = state.read<Component::cell>();
   ContactPairs& pairs = state.write<Component::contact_pairs>();
-  auto& tangential = state.write<Component::contact_tangential>();
-  auto& rolling = state.write<Component::contact_rolling>();
+  // The per-contact histories the scene allocates, from the field registry: carried by key.
+  std::array<std::vector<Vec3>*, std::size(k_contact_history_components)> history{};
+  std::size_t n_history = 0;
+  for_each_contact_history(state.contacts, [&](const FieldInfo& field, std::vector<Vec3>& values) {
+    check_access(field.component, true);
+    history[n_history++] = &values;
+  });
   auto& reference = state.write<Component::particle_reference>();
-  GatherIndex& gather = scratch.write<Component::gather_index>();
-  BroadphaseScratch& bp = scratch.broadphase;
-  const bool has_rolling = state.contacts.has_rolling;
+  GatherIndex& gather = scratch.write<GatherIndex>();
+  BroadphaseScratch& bp = scratch.own<BroadphaseScratch>();
 
   const std::size_t n = x.size();
   const double skin = model.contact.skin;
@@ -95,12 +99,12 @@ void build_neighbor_list(const Model& model, State& state, Scratch& scratch, Exe
   // such step to a build): stop with the particle rather than bin NaNs.
   for (std::size_t k = 0; k < n; ++k)
     if (!x[k].allFinite()) {
-      bp.error = not_finite_message(id[k], x[k]);
+      scratch.error = not_finite_message(id[k], x[k]);
       return;
     }
 
   if (!cell.length.allFinite()) {
-    bp.error = "cell lengths (" + std::to_string(cell.length[0]) + ", " + std::to_string(cell.length[1]) + ", " +
+    scratch.error = "cell lengths (" + std::to_string(cell.length[0]) + ", " + std::to_string(cell.length[1]) + ", " +
                std::to_string(cell.length[2]) + ") m are not finite: the servo went unstable (a stress that is not "
                "finite, or a gain too high for the time step)";
     return;
@@ -111,7 +115,7 @@ void build_neighbor_list(const Model& model, State& state, Scratch& scratch, Exe
   if (!(length.minCoeff() > cutoff)) {
     int axis = 0;
     length.minCoeff(&axis);
-    bp.error = "cell width L" + std::to_string(axis + 1) + " = " + std::to_string(length[axis]) +
+    scratch.error = "cell width L" + std::to_string(axis + 1) + " = " + std::to_string(length[axis]) +
                " m is not larger than 2 r_max + skin = " + std::to_string(cutoff) +
                " m (r_max = " + std::to_string(r_max) + " m, skin = " + std::to_string(skin) +
                " m): a sphere would meet its own periodic image";
@@ -191,8 +195,8 @@ void build_neighbor_list(const Model& model, State& state, Scratch& scratch, Exe
   next.image.resize(m);
   next.i.resize(m);
   next.j.resize(m);
-  bp.next_tangential.resize(m);
-  if (has_rolling) bp.next_rolling.resize(m);
+  bp.next_history.resize(n_history);
+  for (std::size_t h = 0; h < n_history; ++h) bp.next_history[h].resize(m);
   exec.parallel_for(n, 256, [&](std::size_t b, std::size_t e) {
     for (std::size_t i = b; i < e; ++i) {
       const std::uint32_t s0 = bp.start[i];
@@ -216,8 +220,7 @@ void build_neighbor_list(const Model& model, State& state, Scratch& scratch, Exe
         next.i[c] = static_cast<std::uint32_t>(i);
         // History: the same contact (id_i, id_j, image before the wrap) in the old list of i, if
         // any. With x' = x - s L, r = x_i - x_j - n L = x_i' - x_j' - (n - s_i + s_j) L.
-        bp.next_tangential[c].setZero();
-        if (has_rolling) bp.next_rolling[c].setZero();
+        for (std::size_t h = 0; h < n_history; ++h) bp.next_history[h][c].setZero();
         const std::array<int, 3>& s_i = bp.shift[i];
         const std::array<int, 3>& s_j = bp.shift[next.j[c]];
         const Image& img = next.image[c];
@@ -227,8 +230,7 @@ void build_neighbor_list(const Model& model, State& state, Scratch& scratch, Exe
         };
         for (std::uint32_t q = bp.old_start[i]; q < bp.old_start[i + 1]; ++q)
           if (const std::uint32_t o = bp.old_order[q]; pairs.id_j[o] == next.id_j[c] && same_contact(pairs.image[o])) {
-            bp.next_tangential[c] = tangential[o];
-            if (has_rolling) bp.next_rolling[c] = rolling[o];
+            for (std::size_t h = 0; h < n_history; ++h) bp.next_history[h][c] = (*history[h])[o];
             break;
           }
       }
@@ -239,14 +241,13 @@ void build_neighbor_list(const Model& model, State& state, Scratch& scratch, Exe
   std::swap(pairs.image, next.image);
   std::swap(pairs.i, next.i);
   std::swap(pairs.j, next.j);
-  std::swap(tangential, bp.next_tangential);
-  if (has_rolling) std::swap(rolling, bp.next_rolling);
+  for (std::size_t h = 0; h < n_history; ++h) std::swap(*history[h], bp.next_history[h]);
   pairs.reference_length = length;
   reference.assign(x.begin(), x.end());
 
   rebuild_gather_index(pairs, n, gather);
   rebuild_pair_constants(pairs, radius, state.read<Component::particle_mass>(),
-                         scratch.write<Component::pair_constants>());
+                         scratch.write<PairConstants>());
   bp.cutoff = cutoff;
   bp.r_min = n == 0 ? 0.0 : *std::min_element(radius.begin(), radius.end());
   ++bp.builds;
@@ -309,7 +310,7 @@ void Broadphase::run(const Model& model, State& state, Scratch& scratch, Executo
   const auto& reference = state.read<Component::particle_reference>();
   const Cell& cell = state.read<Component::cell>();
   const ContactPairs& pairs = state.read<Component::contact_pairs>();
-  BroadphaseScratch& bp = scratch.broadphase;
+  BroadphaseScratch& bp = scratch.own<BroadphaseScratch>();
 
   bool rebuild = pairs.reference_length.minCoeff() <= 0.0 || reference.size() != x.size();
   if (!rebuild) {
@@ -361,9 +362,9 @@ void Broadphase::run(const Model& model, State& state, Scratch& scratch, Executo
       }
       const auto& id = state.read<Component::particle_id>();
       if (!std::isfinite(worst_d))
-        bp.error = not_finite_message(id[worst], x[worst]);
+        scratch.error = not_finite_message(id[worst], x[worst]);
       else
-        bp.error = "particle id " + std::to_string(id[worst]) + ": moved " + std::to_string(worst_d) +
+        scratch.error = "particle id " + std::to_string(id[worst]) + ": moved " + std::to_string(worst_d) +
                    " m since the neighbour list build, more than skin/2 + r_min = " + std::to_string(limit) +
                    " m: in one step it went farther than the smallest radius (speed " +
                    std::to_string((worst_d - 0.5 * model.contact.skin) / model.dt) + " m/s or more): " +
@@ -372,6 +373,16 @@ void Broadphase::run(const Model& model, State& state, Scratch& scratch, Executo
     }
   }
   if (rebuild) build_neighbor_list(model, state, scratch, exec);
+}
+
+void Broadphase::setup(const Model& model, State& state, Scratch& scratch, Executor& exec) {
+  build_neighbor_list(model, state, scratch, exec);
+}
+
+void Broadphase::restore(const Model&, State& state, Scratch& scratch) {
+  rebuild_gather_index(state.contacts.pairs, state.particles.size(), scratch.write<GatherIndex>());
+  rebuild_pair_constants(state.contacts.pairs, state.particles.radius, state.particles.mass,
+                         scratch.write<PairConstants>());
 }
 
 }  // namespace sandcell

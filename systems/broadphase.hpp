@@ -4,7 +4,7 @@
 //
 // Reads radii, ids and the cell. Writes positions (wrapped into the cell at each build, the only
 // place they are wrapped in a scene with contacts), the pair list (contact_pairs), the history
-// arrays (contact_tangential, contact_rolling) when it rebuilds, the per-particle reference
+// arrays (every per-contact history of the field registry) when it rebuilds, the per-particle reference
 // positions of the last build and the CSR gather index.
 //
 // Rebuild test (every step, O(n)): with reduced coordinates s = x / L, a pair's branch vector
@@ -22,22 +22,64 @@
 // Instability: a displacement since the build beyond skin/2 + r_min means some particle moved
 // farther than the smallest radius in the last step (the step before passed the test), so contacts
 // may have been passed through; a non-finite position is worse. Either sets
-// scratch.broadphase.error naming the particle (World stops with it): never a NaN silently stepped.
+// Scratch::error naming the particle (World stops with it): never a NaN silently stepped.
 // The cell must be wider than 2 r_max + skin on every axis: otherwise a particle could meet its
-// own image; the system then sets scratch.broadphase.error and World stops with that message.
+// own image; the system then sets Scratch::error and World stops with that message.
+#include "systems/pair_list.hpp"
+
 #include "engine/system.hpp"
 
+#include <array>
+#include <string>
+#include <vector>
+
 namespace sandcell {
+
+/// The broadphase's private buffers and statistics (Scratch::own).
+struct BroadphaseScratch {
+  std::vector<std::uint32_t> bin_start;     // (n_bins+1) -, CSR of particles per bin
+  std::vector<std::uint32_t> bin_particle;  // (n) -, particle indices sorted by bin
+  std::vector<std::uint32_t> particle_bin;  // (n) -, bin of each particle
+  std::vector<std::uint32_t> count;         // (n) -, new pairs per particle i
+  std::vector<std::uint32_t> start;         // (n+1) -, prefix sum of count
+  std::vector<std::uint32_t> old_start;     // (n+1) -, ranges of old_order per particle i
+  std::vector<std::uint32_t> old_order;     // (m_old) -, previous list's pair indices grouped by i
+  std::vector<std::array<int, 3>> shift;    // (n) -, cell lengths the last wrap subtracted from each position
+  ContactPairs next_pairs;                  // the list being built, swapped with the State's
+  std::vector<std::vector<Vec3>> next_history;  // (histories)(m,3) the per-contact histories for the list
+                                                //   being built (components/fields.hpp: for_each_contact_history)
+  double cutoff = 0.0;                      // m, 2 r_max + skin of the last build
+  double r_min = 0.0;                       // m, smallest radius (0: not yet known)
+  std::uint64_t builds = 0;                 // neighbour-list builds so far
+};
+
+/// The components of every per-contact history (components/fields.hpp).
+constexpr ComponentMask contact_history_mask() {
+  ComponentMask m = 0;
+  for (Component c : k_contact_history_components) m |= mask_of(c);
+  return m;
+}
 
 struct Broadphase {
   static constexpr std::string_view name = "broadphase";
   static constexpr ComponentMask reads =
       mask_of({Component::particle_id, Component::particle_radius, Component::particle_mass, Component::cell});
   static constexpr ComponentMask writes =
-      mask_of({Component::particle_position, Component::contact_pairs, Component::contact_tangential, Component::contact_rolling,
-               Component::particle_reference, Component::gather_index, Component::pair_constants});
+      mask_of({Component::particle_position, Component::contact_pairs, Component::particle_reference,
+               Component::gather_index, Component::pair_constants}) |
+      contact_history_mask();
   static void run(const Model& model, State& state, Scratch& scratch, Executor& exec);
+  /// The first list (build_neighbor_list).
+  static void setup(const Model& model, State& state, Scratch& scratch, Executor& exec);
+  /// The gather index and pair constants of the list a state holds (rebuild_gather_index,
+  /// rebuild_pair_constants).
+  static void restore(const Model& model, State& state, Scratch& scratch);
 };
+
+/// Neighbour-list builds so far in a scene (0 before its first).
+inline std::uint64_t list_builds(const Scratch& scratch) {
+  return scratch.has<BroadphaseScratch>() ? scratch.own<BroadphaseScratch>().builds : 0;
+}
 
 /// Rebuilds the CSR gather index from the pair list alone (which is sorted by i): for a World made
 /// from a state that already holds its list and forces (a checkpoint, the next stage of a test).

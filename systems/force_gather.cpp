@@ -1,12 +1,13 @@
 #include "systems/force_gather.hpp"
 
 #include "systems/integrate.hpp"
+#include "systems/pair_list.hpp"
 
 namespace sandcell {
 
 void ForceGather::run(const Model&, State& state, Scratch& scratch, Executor& exec) {
   const ContactForces& in = state.read<Component::contact_forces>();
-  const GatherIndex& index = scratch.read<Component::gather_index>();
+  const GatherIndex& index = scratch.read<GatherIndex>();
   auto& force = state.write<Component::particle_force>();
   auto& torque = state.write<Component::particle_torque>();
   const Vec3* __restrict f = in.force.data();

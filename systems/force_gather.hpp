@@ -17,6 +17,10 @@ struct ForceGather {
   static constexpr ComponentMask reads = mask_of({Component::contact_forces, Component::gather_index});
   static constexpr ComponentMask writes = mask_of({Component::particle_force, Component::particle_torque});
   static void run(const Model& model, State& state, Scratch& scratch, Executor& exec);
+  /// The sums of the initial configuration's forces (the same pass).
+  static void setup(const Model& model, State& state, Scratch& scratch, Executor& exec) {
+    run(model, state, scratch, exec);
+  }
 };
 
 }  // namespace sandcell

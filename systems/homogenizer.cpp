@@ -1,5 +1,6 @@
 #include "systems/homogenizer.hpp"
 
+#include "systems/contact_pass.hpp"
 #include "systems/stress.hpp"
 
 #include <Eigen/Eigenvalues>
@@ -36,7 +37,7 @@ void Homogenizer::run(const Model& model, State& state, Scratch& scratch, Execut
   Mat3 sum = contact_stress_sum(pairs, forces.force, x, cell.length, exec);
   if (model.servo.kinetic_stress)
     sum += kinetic_sum(state.read<Component::particle_velocity>(), state.read<Component::particle_mass>(), exec);
-  MeasuredStress& out = scratch.write<Component::stress>();
+  MeasuredStress& out = scratch.write<MeasuredStress>();
   const Mat3 s = sum / cell.volume();
   out.stress = 0.5 * (s + s.transpose());
   out.step = state.clock.step;
@@ -116,7 +117,7 @@ Measures measure(const Model& model, const State& state, Executor& exec, const M
   // pair list (an output-step cost, in a fixed order).
   std::vector<std::uint32_t> count(n, 0);
   std::vector<std::uint8_t> touching(n_pairs, 0);
-  double force_sum = 0.0, elastic = 0.0;
+  double force_sum = 0.0;
   Mat3 fabric = Mat3::Zero();
   for (std::size_t k = 0; k < n_pairs; ++k) {
     const std::uint32_t i = c.pairs.i[k], j = c.pairs.j[k];
@@ -132,28 +133,10 @@ Measures measure(const Model& model, const State& state, Executor& exec, const M
     const Vec3 nrm = r / dist;
     fabric += nrm * nrm.transpose();
     force_sum += c.forces.force[k].norm();
-    // Stored elastic energy, from the overlap and the histories the contact law keeps.
     const double overlap = reach - dist;
-    const double r_star = p.radius[i] * p.radius[j] / reach;
     m.max_overlap_ratio = std::max(m.max_overlap_ratio, overlap / std::min(p.radius[i], p.radius[j]));
-    if (model.pairs.empty()) continue;  // a model World has not finalized: no material table
-    const PairMaterial& mat = model.pair(p.material[i], p.material[j]);
-    const double sqrt_rd = std::sqrt(r_star * overlap);
-    const double k_t = 8.0 * mat.g_star * sqrt_rd;
-    elastic += 8.0 / 15.0 * mat.e_star * sqrt_rd * overlap * overlap;
-    if (k < c.tangential.size() && k_t > 0.0) {
-      const double h2 = c.tangential[k].squaredNorm();  // u_t (m) or the elastic force F_s (N)
-      elastic += model.contact.tangential == TangentialModel::history ? 0.5 * k_t * h2 : 0.5 * h2 / k_t;
-    }
-    if (c.has_rolling && k < c.rolling.size()) {  // epsd2 or epsd: the laws with a stored moment
-      const double k_n = 4.0 / 3.0 * mat.e_star * sqrt_rd;
-      const double k_r = model.contact.rolling == RollingModel::epsd2
-                             ? k_t * r_star * r_star
-                             : 2.25 * k_n * mat.rolling_friction * mat.rolling_friction * r_star * r_star;
-      if (k_r > 0.0) elastic += 0.5 * c.rolling[k].squaredNorm() / k_r;
-    }
   }
-  m.elastic_energy = elastic;
+  m.elastic_energy = contact_elastic_energy(model, state);  // as the model's contact laws store it
   if (m.contacts > 0) m.fabric = fabric / static_cast<double>(m.contacts);
   m.z = n > 0 ? 2.0 * static_cast<double>(m.contacts) / static_cast<double>(n) : 0.0;
 

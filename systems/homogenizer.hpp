@@ -5,7 +5,7 @@
 // The system (`Homogenizer`) measures only what the servo needs, only on servo steps
 // (clock.step % servo.interval == 0): the symmetrized Love-Weber stress
 //   S = (1/V) sum_c f_c (x) r_c  [+ (1/V) sum_p m v~ (x) v~ when servo.kinetic_stress],
-// compression positive, into scratch.measured. It is scheduled only when the servo is.
+// compression positive, into the MeasuredStress scratch. It is scheduled only when the servo is.
 // Reads positions, the pair list, contact forces, the cell (and velocities and masses for the
 // kinetic part); writes the `stress` scratch component. Deterministic reduction with fixed grain.
 //
@@ -16,6 +16,14 @@
 #include <span>
 
 namespace sandcell {
+
+/// The stress measured by the homogenizer on servo steps, for the servo of the same step (scratch
+/// component `stress`).
+struct MeasuredStress {
+  static constexpr Component component = Component::stress;
+  Mat3 stress = Mat3::Zero();  // (3,3) Pa, symmetrized, compression positive (docs/physics.md section 5)
+  std::uint64_t step = ~std::uint64_t{0};  // clock step at which it was measured (none: max)
+};
 
 struct Homogenizer {
   static constexpr std::string_view name = "homogenizer";

@@ -70,8 +70,9 @@ void IntegrateInitial::run(const Model& model, State& state, Scratch& scratch, E
   Vec3* x = position.data();
   Vec3* v = velocity.data();
   Vec3* w = omega.data();
-  if (scratch.kick_pending) {  // the last step's final kick was left to this pass (scratch.hpp)
-    scratch.kick_pending = false;
+  KickState& kick = scratch.own<KickState>();
+  if (kick.pending) {  // the last step's final kick was left to this pass (integrate.hpp)
+    kick.pending = false;
     const bool exclusive = cpu_has_prefetchw();
     exec.parallel_for(position.size(), k_particle_grain, [&](std::size_t b, std::size_t e) {
       if (exclusive) two_kicks_drift<true>(dt, rate, f, t, m, inv_i, x, v, w, b, e);
@@ -86,11 +87,8 @@ void IntegrateInitial::run(const Model& model, State& state, Scratch& scratch, E
   cell.length = new_length;
 }
 
-void IntegrateFinal::run(const Model& model, State& state, Scratch& scratch, Executor& exec) {
-  if (scratch.defer_final_kick) {  // the next step's integrate_initial applies it (scratch.hpp)
-    scratch.kick_pending = true;
-    return;
-  }
+namespace {
+void final_kick(const Model& model, State& state, Executor& exec) {
   const double dt = model.dt;
   const Vec3* f = state.read<Component::particle_force>().data();
   const Vec3* t = state.read<Component::particle_torque>().data();
@@ -101,6 +99,23 @@ void IntegrateFinal::run(const Model& model, State& state, Scratch& scratch, Exe
   Vec3* w = state.write<Component::particle_angular_velocity>().data();
   exec.parallel_for(velocity.size(), k_particle_grain,
                     [&](std::size_t b, std::size_t e) { half_kick(0.5 * dt, f, t, m, inv_i, v, w, b, e); });
+}
+
+}  // namespace
+
+void IntegrateFinal::run(const Model& model, State& state, Scratch& scratch, Executor& exec) {
+  if (scratch.batching) {  // the next step's integrate_initial applies it (integrate.hpp)
+    scratch.own<KickState>().pending = true;
+    return;
+  }
+  final_kick(model, state, exec);
+}
+
+void IntegrateFinal::flush(const Model& model, State& state, Scratch& scratch, Executor& exec) {
+  KickState& kick = scratch.own<KickState>();
+  if (!kick.pending) return;
+  kick.pending = false;
+  final_kick(model, state, exec);
 }
 
 }  // namespace sandcell

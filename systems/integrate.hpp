@@ -13,9 +13,12 @@
 // rebuilds the list (so they leave the cell by at most half a skin), and scenes without contacts
 // schedule the `wrap` system after this one (systems/wrap.hpp). Since the affine field D x is
 // homogeneous, a branch vector x_i - x_j - H n evolves the same with wrapped or unwrapped x.
-// Within one World::step(n) call, integrate_final may leave its kick to the next step's
-// integrate_initial, which then applies both half kicks and the drift in one pass: the same
-// additions in the same order, one pass over the particles less per step (Scratch::defer_final_kick).
+// Within one World::step(n) call (Scratch::batching), integrate_final may leave its kick to the
+// next step's integrate_initial (it declares `deferred_to`), which then applies both half kicks and
+// the drift in one pass: the same additions in the same order, one pass over the particles less
+// per step. World calls integrate_final's `flush` before returning, which applies a kick left
+// pending. The two share a KickState (Scratch::own): both write the velocities, so the graph
+// orders them and never runs them at once.
 // Reads forces, torques, masses and inverse inertias; writes positions, velocities, angular
 // velocities, and the cell lengths (initial half only). Per-particle independent: a parallel_for.
 #include "engine/system.hpp"
@@ -32,13 +35,26 @@ struct IntegrateInitial {
   static void run(const Model& model, State& state, Scratch& scratch, Executor& exec);
 };
 
+/// The final half kick left to the next integrate_initial (shared by the two integrator halves).
+struct KickState {
+  bool pending = false;
+};
+
+/// Whether a final half kick is waiting for the next step (World never leaves one between calls).
+inline bool kick_pending(const Scratch& scratch) {
+  return scratch.has<KickState>() && scratch.own<KickState>().pending;
+}
+
 struct IntegrateFinal {
   static constexpr std::string_view name = "integrate_final";
+  static constexpr std::string_view deferred_to = "integrate_initial";
   static constexpr ComponentMask reads = mask_of({Component::particle_force, Component::particle_torque,
                                                   Component::particle_mass, Component::particle_inv_inertia});
   static constexpr ComponentMask writes =
       mask_of({Component::particle_velocity, Component::particle_angular_velocity});
   static void run(const Model& model, State& state, Scratch& scratch, Executor& exec);
+  /// Applies a kick left pending (the end of a World::step_until call).
+  static void flush(const Model& model, State& state, Scratch& scratch, Executor& exec);
 };
 
 /// Particles per parallel_for chunk for per-particle loops.

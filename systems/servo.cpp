@@ -73,7 +73,7 @@ Vec3 servo_strain_rates(const ServoSettings& servo, const Vec3& sigma, Vec3* int
 
 void Servo::run(const Model& model, State& state, Scratch& scratch, Executor&) {
   if (!servo_due(model.servo, state.clock.step)) return;
-  const MeasuredStress& measured = scratch.read<Component::stress>();
+  const MeasuredStress& measured = scratch.read<MeasuredStress>();
   Cell& cell = state.write<Component::cell>();
   const Vec3 rate = servo_strain_rates(model.servo, measured.stress.diagonal(), &cell.servo_integral,
                                        model.dt * model.servo.interval, state.clock.time);

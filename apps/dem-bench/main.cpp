@@ -29,6 +29,8 @@
 #include "engine/fnv1a.hpp"
 #include "engine/packing.hpp"
 #include "engine/world.hpp"
+#include "systems/broadphase.hpp"
+#include "systems/catalogue.hpp"
 #include "systems/stress.hpp"
 
 #include <sys/resource.h>
@@ -146,10 +148,10 @@ double stream_rate(Executor& exec, std::vector<double>& x, std::vector<double>& 
 int run_scaling(const Model& model, const Packing& packing, long steps, int threads, int rounds, double deform,
                 bool json) {
   // T = 0: all hardware threads, as the executor counts them (TBB's default concurrency).
-  World many(model, make_state(model, packing), ExecutorConfig{Backend::tbb, threads});
+  World many(model, make_state(model, packing), systems_for(model), ExecutorConfig{Backend::tbb, threads});
   threads = many.executor().threads();
   if (threads < 2) usage_error("--scaling needs --threads T >= 2 (got " + std::to_string(threads) + ")");
-  World one(model, make_state(model, packing), ExecutorConfig{Backend::tbb, 1});
+  World one(model, make_state(model, packing), systems_for(model), ExecutorConfig{Backend::tbb, 1});
   const double lz0 = one.state().cell.length[2];
   const double n = double(one.state().particles.size());
   std::vector<double> rate_one, rate_many, ratio;
@@ -163,7 +165,7 @@ int run_scaling(const Model& model, const Packing& packing, long steps, int thre
   const auto timed = [&](World& w) { return rate(1, [&] { advance(w, steps, deform, lz0); }); };
   std::vector<std::unique_ptr<World>> jobs;
   for (int t = 0; t < threads; ++t)
-    jobs.push_back(std::make_unique<World>(model, make_state(model, packing), ExecutorConfig{Backend::tbb, 1}));
+    jobs.push_back(std::make_unique<World>(model, make_state(model, packing), systems_for(model), ExecutorConfig{Backend::tbb, 1}));
   std::vector<double> jobs_ratio;
   const auto timed_jobs = [&] {
     return rate(jobs.size(), [&] {
@@ -254,7 +256,7 @@ int run_costs(const Model& base, const Packing& packing, long steps, int threads
     for (std::size_t v = 0; v < variants.size(); ++v) {
       Model model = base;
       variants[v].change(model);
-      World world(model, make_state(model, packing), ExecutorConfig{Backend::tbb, threads});
+      World world(model, make_state(model, packing), systems_for(model), ExecutorConfig{Backend::tbb, threads});
       const auto t0 = std::chrono::steady_clock::now();
       world.step(static_cast<std::uint64_t>(steps));
       const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
@@ -339,12 +341,12 @@ int main(int argc, char** argv) {
   if (costs) return run_costs(model, packing, steps, threads, rounds);
   if (scaling) return run_scaling(model, packing, steps, threads, rounds, deform, json);
   const ExecutorConfig exec{serial ? Backend::serial : Backend::tbb, threads};
-  World world(model, make_state(model, packing), exec);
+  World world(model, make_state(model, packing), systems_for(model), exec);
   const std::size_t n = world.state().particles.size();
   const double lz0 = world.state().cell.length[2];
   const Mat3 s0 = contact_stress(world.state(), world.executor());
   const std::size_t c0 = count_touching(world.state());
-  const std::uint64_t builds0 = world.scratch().broadphase.builds;
+  const std::uint64_t builds0 = list_builds(world.scratch());
 
   world.reset_timers();
   const auto t0 = std::chrono::steady_clock::now();
@@ -357,7 +359,7 @@ int main(int argc, char** argv) {
   getrusage(RUSAGE_SELF, &usage);
   const double peak_mib = usage.ru_maxrss / 1024.0;
   const double rate = wall > 0 ? double(n) * double(steps) / wall : 0.0;
-  const std::uint64_t builds = world.scratch().broadphase.builds - builds0;
+  const std::uint64_t builds = list_builds(world.scratch()) - builds0;
   const auto& graph = world.graph();
   const unsigned long long digest = state_digest(world.state());
 

@@ -11,6 +11,7 @@
 #include "engine/packing.hpp"
 #include "engine/results.hpp"
 #include "engine/world.hpp"
+#include "systems/catalogue.hpp"
 #include "systems/homogenizer.hpp"
 
 #include <CLI/CLI.hpp>
@@ -491,7 +492,7 @@ bool Runner::prepare(double p0, Summary& summary) {
   if (const double from = plan_.chained_from(p0); from > 0.0) summary.from = "sample-" + p0_tag(from);
   // A chained preparation continues a sample whose forces are in its state, as a test does.
   const bool initial_forces = !resumed && plan_.chained_from(p0) == 0.0;
-  World world(model, std::move(state), ExecutorConfig{Backend::tbb, plan_.prepare_threads}, initial_forces);
+  World world(model, std::move(state), systems_for(model), ExecutorConfig{Backend::tbb, plan_.prepare_threads}, initial_forces);
   MeasureOptions mo;
   mo.d50 = median_diameter(world.state().particles);
   mo.density = plan_.config.material.density;
@@ -687,7 +688,7 @@ void Runner::shear(const TestSpec& test, Summary& summary) {
                                         {{"job", test.name}, {"stage", "shear"}, {"path", path_name(test.path)},
                                          {"b", num(test.b)}, {"p0", num(test.p0)}}));
   }
-  World world(model, std::move(state), ExecutorConfig{Backend::tbb, plan_.job_threads}, false);
+  World world(model, std::move(state), systems_for(model), ExecutorConfig{Backend::tbb, plan_.job_threads}, false);
   MeasureOptions mo;
   mo.d50 = median_diameter(world.state().particles);
   mo.density = plan_.config.material.density;

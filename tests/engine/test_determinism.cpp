@@ -1,5 +1,6 @@
 // Determinism: bitwise identical state for the serial backend and 1, 2, 3, 8 threads.
 #include "engine/world.hpp"
+#include "systems/catalogue.hpp"
 #include "support/scenes.hpp"
 
 #include <doctest/doctest.h>
@@ -24,7 +25,7 @@ TEST_CASE("1e4-particle free flight, 1000 steps: bitwise identical for any threa
   }
 
   auto run = [&](ExecutorConfig cfg) {
-    World w(model, s, cfg);
+    World w(model, s, systems_for(model), cfg);
     w.step(1000);
     return w.state();
   };

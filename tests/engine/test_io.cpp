@@ -10,6 +10,8 @@
 #include "engine/results.hpp"
 #include "engine/version.hpp"
 #include "engine/world.hpp"
+#include "systems/broadphase.hpp"
+#include "systems/catalogue.hpp"
 #include "support/scenes.hpp"
 
 #include <doctest/doctest.h>
@@ -153,7 +155,7 @@ std::string thrown_message(Fn&& fn) {
 TEST_CASE("checkpoint round trip is bitwise for a stepped packing with contact and rolling history") {
   TempDir dir("roundtrip");
   const Model model = packing_model();
-  World world(model, packing_state(model), ExecutorConfig{Backend::tbb, 2});
+  World world(model, packing_state(model), systems_for(model), ExecutorConfig{Backend::tbb, 2});
   world.step(200);
   const State& s = world.state();
   REQUIRE(s.contacts.size() > s.particles.size());
@@ -198,7 +200,7 @@ TEST_CASE("a checkpoint without rolling and without contacts round-trips") {
   model.dt = 1e-5;
   model.materials.push_back(Material{});
   model.contact.enabled = false;
-  World world(model, test::random_gas(model, 50, 0.05, 1e-3, 2e-3, 1.0, 10.0, 3), ExecutorConfig{Backend::serial, 1});
+  World world(model, test::random_gas(model, 50, 0.05, 1e-3, 2e-3, 1.0, 10.0, 3), systems_for(model), ExecutorConfig{Backend::serial, 1});
   world.step(10);
   REQUIRE(world.state().contacts.size() == 0);
   REQUIRE(!world.state().contacts.has_rolling);
@@ -209,25 +211,25 @@ TEST_CASE("a checkpoint without rolling and without contacts round-trips") {
 TEST_CASE("a World rebuilt from a checkpoint continues bitwise identically to the original") {
   TempDir dir("continue");
   const Model model = packing_model();
-  World original(model, packing_state(model), ExecutorConfig{Backend::tbb, 2});
+  World original(model, packing_state(model), systems_for(model), ExecutorConfig{Backend::tbb, 2});
   // Early, while the initial overlaps still push the spheres apart and the list is rebuilt often.
   original.step(20);
   write_checkpoint(dir.path / "mid.h5", original.state());
 
   // initial_forces = false: the checkpoint holds the forces of its step; recomputing them at setup
   // (with history frozen) would differ from those of the step and break continuation.
-  World resumed(model, read_checkpoint(dir.path / "mid.h5"), ExecutorConfig{Backend::tbb, 2}, false);
+  World resumed(model, read_checkpoint(dir.path / "mid.h5"), systems_for(model), ExecutorConfig{Backend::tbb, 2}, false);
   original.step(250);
   resumed.step(250);
   // The restarted run crossed neighbour-list rebuilds (scratch is rebuilt, never restored).
-  CHECK(resumed.scratch().broadphase.builds >= 1);
+  CHECK(list_builds(resumed.scratch()) >= 1);
   check_same_state(original.state(), resumed.state());
 }
 
 TEST_CASE("a failed checkpoint write throws and leaves the previous checkpoint intact") {
   TempDir dir("atomic");
   const Model model = packing_model();
-  World world(model, packing_state(model), ExecutorConfig{Backend::tbb, 2});
+  World world(model, packing_state(model), systems_for(model), ExecutorConfig{Backend::tbb, 2});
   world.step(20);
   const State first = world.state();
   const fs::path path = dir.path / "ckpt.h5";

@@ -2,6 +2,7 @@
 // optional arrays are not allocated, and optional measures (the kinetic stress) are not computed
 // unless asked.
 #include "engine/world.hpp"
+#include "systems/catalogue.hpp"
 #include "support/scenes.hpp"
 #include "systems/homogenizer.hpp"
 
@@ -30,7 +31,7 @@ State dense(const Model& model) { return test::jittered_lattice(model, 4, 2e-3, 
 TEST_CASE("scene: free flight schedules no contact system and allocates no pair arrays") {
   Model model = base_model();
   model.contact.enabled = false;
-  World world(model, dense(model), ExecutorConfig{Backend::serial});
+  World world(model, dense(model), systems_for(model), ExecutorConfig{Backend::serial});
   world.step(5);
   CHECK(scheduled(world) == std::set<std::string>{"integrate_initial", "wrap", "integrate_final"});
   CHECK(world.state().contacts.size() == 0);
@@ -43,29 +44,29 @@ TEST_CASE("scene: free flight schedules no contact system and allocates no pair 
 TEST_CASE("scene: contacts without rolling, servo or sorting schedule only the contact systems") {
   Model model = base_model();
   model.contact.rolling = RollingModel::none;
-  World world(model, dense(model), ExecutorConfig{Backend::serial});
+  World world(model, dense(model), systems_for(model), ExecutorConfig{Backend::serial});
   world.step(5);
   CHECK(scheduled(world) ==
-        std::set<std::string>{"integrate_initial", "broadphase", "hertz_mindlin", "force_gather", "integrate_final"});
+        std::set<std::string>{"integrate_initial", "broadphase", "contact", "force_gather", "integrate_final"});
   REQUIRE(world.state().contacts.size() > 0);
   CHECK(world.state().contacts.tangential.size() == world.state().contacts.size());
   CHECK(world.state().contacts.rolling.empty());  // no rolling history for a scene without rolling
 }
 
 TEST_CASE("scene: each option adds exactly its system") {
-  const std::set<std::string> contact = {"integrate_initial", "broadphase", "hertz_mindlin", "force_gather",
+  const std::set<std::string> contact = {"integrate_initial", "broadphase", "contact", "force_gather",
                                          "integrate_final"};
   Model model = base_model();
   SUBCASE("rolling resistance: evaluated in the contact pass (no system of its own), history allocated") {
     model.contact.rolling = RollingModel::epsd2;
-    World world(model, dense(model), ExecutorConfig{Backend::serial});
+    World world(model, dense(model), systems_for(model), ExecutorConfig{Backend::serial});
     world.step(5);
     CHECK(scheduled(world) == contact);
     CHECK(world.state().contacts.rolling.size() == world.state().contacts.size());
   }
   SUBCASE("rolling resistance cdt: no stored moment, so no rolling history allocated") {
     model.contact.rolling = RollingModel::cdt;
-    World world(model, dense(model), ExecutorConfig{Backend::serial});
+    World world(model, dense(model), systems_for(model), ExecutorConfig{Backend::serial});
     world.step(5);
     CHECK(scheduled(world) == contact);
     CHECK(world.state().contacts.size() > 0);
@@ -73,7 +74,7 @@ TEST_CASE("scene: each option adds exactly its system") {
   }
   SUBCASE("spatial sorting") {
     model.contact.sort_interval = 10;
-    World world(model, dense(model), ExecutorConfig{Backend::serial});
+    World world(model, dense(model), systems_for(model), ExecutorConfig{Backend::serial});
     std::set<std::string> expected = contact;
     expected.insert("spatial_sort");
     CHECK(scheduled(world) == expected);
@@ -85,7 +86,7 @@ TEST_CASE("scene: each option adds exactly its system") {
     model.servo.p = 1e6;
     model.servo.gain = 10.0;
     model.servo.max_rate = 1.0;
-    World world(model, dense(model), ExecutorConfig{Backend::serial});
+    World world(model, dense(model), systems_for(model), ExecutorConfig{Backend::serial});
     std::set<std::string> expected = contact;
     expected.insert({"homogenizer", "servo"});
     CHECK(scheduled(world) == expected);
@@ -106,10 +107,10 @@ TEST_CASE("scene: the kinetic stress is computed only when the servo asks for it
     model.servo.gain = 10.0;  // every axis strain-controlled (at rate 0): the servo changes nothing
     model.servo.max_rate = 1.0;
     State s = test::jittered_lattice(model, 4, 2e-3, 1.01e-3, 1.03e-3, 0.02e-3, 100.0, 0.0, 5);
-    World world(model, std::move(s), ExecutorConfig{Backend::serial});
+    World world(model, std::move(s), systems_for(model), ExecutorConfig{Backend::serial});
     world.step(1);
-    REQUIRE(world.scratch().measured.step == 0);
-    const Mat3 measured = world.scratch().measured.stress;
+    REQUIRE(world.scratch().own<MeasuredStress>().step == 0);
+    const Mat3 measured = world.scratch().own<MeasuredStress>().stress;
     const Measures contact_only = measure(world.model(), world.state(), world.executor());
     // The kinetic part at the half-step velocities the homogenizer saw: integrate_final has since
     // added F dt / (2m) to each.

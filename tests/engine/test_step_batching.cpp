@@ -4,6 +4,7 @@
 // the deferral applies to, and it must not apply where a system reads the velocities between the
 // two kicks.
 #include "engine/world.hpp"
+#include "systems/catalogue.hpp"
 #include "support/scenes.hpp"
 #include "systems/integrate.hpp"
 
@@ -15,11 +16,11 @@ namespace {
 
 State stepped(const Model& model, const State& s, const std::vector<std::uint64_t>& calls, int threads,
               bool* deferred = nullptr) {
-  World w(model, s, ExecutorConfig{Backend::tbb, threads});
-  if (deferred) *deferred = w.defers_final_kick();
+  World w(model, s, systems_for(model), ExecutorConfig{Backend::tbb, threads});
+  if (deferred) *deferred = w.defers_work();
   for (std::uint64_t n : calls) {
     w.step(n);
-    CHECK_FALSE(w.scratch().kick_pending);  // never left pending between calls
+    CHECK_FALSE(kick_pending(w.scratch()));  // never left pending between calls
   }
   return w.state();
 }
@@ -88,7 +89,7 @@ TEST_CASE("step(n) in one call is bitwise n calls of step(1): contacts with roll
     check_same(one_call, single_steps);
     // Uneven batches, another thread count and the serial backend.
     check_same(stepped(model, s, {7, 1, 100, 2, 190}, 3), single_steps);
-    World serial(model, s, ExecutorConfig{Backend::serial});
+    World serial(model, s, systems_for(model), ExecutorConfig{Backend::serial});
     serial.step(300);
     check_same(serial.state(), single_steps);
   }
@@ -107,7 +108,7 @@ TEST_CASE("the final kick is not deferred when a system after integrate_final re
     World w(model, forced,
             {make_system<IntegrateInitial>(), make_system<IntegrateFinal>(), make_system<Observer>()},
             ExecutorConfig{Backend::tbb, 2});
-    CHECK_FALSE(w.defers_final_kick());
+    CHECK_FALSE(w.defers_work());
     for (std::uint64_t c = 0; c < calls; ++c) w.step(per_call);
     return energy;
   };

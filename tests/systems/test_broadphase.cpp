@@ -3,10 +3,11 @@
 // deforming cells; a too narrow cell is a clear error; contacts across faces and corners, and a
 // translated packing, give the same forces as in the bulk.
 #include "engine/world.hpp"
+#include "systems/catalogue.hpp"
 #include "support/scenes.hpp"
 #include "systems/broadphase.hpp"
 #include "systems/force_gather.hpp"
-#include "systems/hertz_mindlin.hpp"
+#include "systems/contact_pass.hpp"
 
 #include <doctest/doctest.h>
 
@@ -119,7 +120,7 @@ Model default_model(double dt, double skin = 0.3e-3) {
 }
 
 std::vector<SystemSpec> contact_systems() {
-  return {make_system<Broadphase>(), make_system<HertzMindlin>(), make_system<ForceGather>()};
+  return {make_system<Broadphase>(), make_system<ContactPass>(), make_system<ForceGather>()};
 }
 
 }  // namespace
@@ -226,8 +227,8 @@ TEST_CASE("in a deforming cell every touching pair stays listed between rebuilds
   for (Vec3& x : s.particles.position)
     for (int a = 0; a < 3; ++a) x[a] = std::fmod(x[a] + 1.05e-3, s.cell.length[a]);
   s.cell.rate = Vec3(-60.0, 30.0, 20.0);  // 1/s: over 3000 steps (3e-4 s), -1.8 %, +0.9 %, +0.6 %
-  World world(model, s, ExecutorConfig{Backend::tbb, 2});
-  std::uint64_t builds = world.scratch().broadphase.builds;
+  World world(model, s, systems_for(model), ExecutorConfig{Backend::tbb, 2});
+  std::uint64_t builds = list_builds(world.scratch());
   const std::uint64_t builds0 = builds;
   std::size_t touching_checked = 0, rebuild_checks = 0, missing_total = 0;
   const int steps = 3000;
@@ -243,8 +244,8 @@ TEST_CASE("in a deforming cell every touching pair stays listed between rebuilds
     std::set<Key> engine;
     for (std::size_t k = 0; k < st.contacts.size(); ++k)
       engine.insert(Key{st.contacts.pairs.id_i[k], st.contacts.pairs.id_j[k], st.contacts.pairs.image[k]});
-    if (world.scratch().broadphase.builds != builds) {  // rebuilt in this step: exact equality
-      builds = world.scratch().broadphase.builds;
+    if (list_builds(world.scratch()) != builds) {  // rebuilt in this step: exact equality
+      builds = list_builds(world.scratch());
       std::fill(wrapped.begin(), wrapped.end(), 0);
       ++rebuild_checks;
       INFO("step " << step);
@@ -258,7 +259,7 @@ TEST_CASE("in a deforming cell every touching pair stays listed between rebuilds
       if (!engine.count(k)) ++missing_total;
     }
   }
-  const std::uint64_t n_builds = world.scratch().broadphase.builds - builds0;
+  const std::uint64_t n_builds = list_builds(world.scratch()) - builds0;
   MESSAGE(n_builds << " rebuilds in " << steps << " steps; " << touching_checked
                    << " touching pair-steps checked, " << touching_wrapped << " of them with a sphere wrapped since the last build ("
                    << wraps << " wraps); cell now " << world.state().cell.length.transpose());
@@ -297,8 +298,8 @@ TEST_CASE("a touching pair keeps its force while one of its spheres crosses face
     add_sphere(s, model, 0, corner_id == 0 ? corner_x : other_x, R, 0);
     add_sphere(s, model, 1, corner_id == 0 ? other_x : corner_x, R, 0);
     s.particles.velocity[0] = s.particles.velocity[1] = Vec3(1.0, 1.0, 1.0);
-    World world(model, s, ExecutorConfig{Backend::tbb, 2});
-    const std::uint64_t builds0 = world.scratch().broadphase.builds;
+    World world(model, s, systems_for(model), ExecutorConfig{Backend::tbb, 2});
+    const std::uint64_t builds0 = list_builds(world.scratch());
     bool crossed[3] = {false, false, false};
     int failures = 0;
     double worst = 0.0;
@@ -328,7 +329,7 @@ TEST_CASE("a touching pair keeps its force while one of its spheres crosses face
                            << int(st.contacts.pairs.image[0][2]) << "))");
     }
     CHECK(failures == 0);
-    MESSAGE("corner sphere id " << corner_id << ": " << world.scratch().broadphase.builds - builds0
+    MESSAGE("corner sphere id " << corner_id << ": " << list_builds(world.scratch()) - builds0
                                 << " list builds after the first, largest relative force error " << worst);
     CHECK((crossed[0] && crossed[1] && crossed[2]));
   }
@@ -359,15 +360,15 @@ TEST_CASE("a sliding contact keeps its tangential and rolling history when a lis
     s.particles.velocity[0] = Vec3(1.0, 1.0, 1.0) + slide;
     s.particles.velocity[1] = Vec3(1.0, 1.0, 1.0);
     s.particles.angular_velocity[0] = Vec3(0.0, 0.0, 30.0);  // rolls: builds the rolling moment
-    World world(model, s, ExecutorConfig{Backend::tbb, 2});
-    const std::uint64_t builds0 = world.scratch().broadphase.builds;
+    World world(model, s, systems_for(model), ExecutorConfig{Backend::tbb, 2});
+    const std::uint64_t builds0 = list_builds(world.scratch());
     crossed = false;
     for (int step = 0; step < 150; ++step) {
       const double x_before = world.state().particles.position[0][0];
       world.step();
       if (world.state().particles.position[0][0] < x_before - 0.5 * L) crossed = true;
     }
-    builds = static_cast<int>(world.scratch().broadphase.builds - builds0);
+    builds = static_cast<int>(list_builds(world.scratch()) - builds0);
     const State& st = world.state();
     std::size_t touching = st.contacts.size();
     for (std::size_t k = 0; k < st.contacts.size(); ++k)
@@ -400,7 +401,7 @@ TEST_CASE("a cell narrower than 2 r_max + skin is a SimulationError naming the w
     add_sphere(s, model, 1, Vec3(1e-3, 1e-3, 1e-3), 0.5 * R, 0);
     std::string message;
     try {
-      World world(model, s, ExecutorConfig{Backend::tbb, 2});
+      World world(model, s, systems_for(model), ExecutorConfig{Backend::tbb, 2});
     } catch (const SimulationError& e) {
       message = e.what();
     }
@@ -416,7 +417,7 @@ TEST_CASE("a cell narrower than 2 r_max + skin is a SimulationError naming the w
     s.cell.length = s.cell.length0 = Vec3(10e-3, 10e-3, 1.2 * (2.0 * R + skin));
     add_sphere(s, model, 0, Vec3(5e-3, 5e-3, 1e-3), R, 0);
     s.cell.rate = Vec3(0.0, 0.0, -1e4);
-    World world(model, s, ExecutorConfig{Backend::tbb, 2});
+    World world(model, s, systems_for(model), ExecutorConfig{Backend::tbb, 2});
     std::string message;
     int step = 0;
     try {
@@ -450,7 +451,7 @@ TEST_CASE("a state whose pair list has an image beyond one cell is refused, nami
   s.contacts.pairs.image[0] = Image{2, 0, 0};
   std::string message;
   try {
-    World world(model, s, ExecutorConfig{Backend::tbb, 1}, false);
+    World world(model, s, systems_for(model), ExecutorConfig{Backend::tbb, 1}, false);
   } catch (const std::invalid_argument& e) {
     message = e.what();
   }
@@ -460,7 +461,7 @@ TEST_CASE("a state whose pair list has an image beyond one cell is refused, nami
   CHECK(message.find("-1, 0 or 1") != std::string::npos);
   // The same list with image (-1, 0, 0), the one the broadphase would build, is accepted.
   s.contacts.pairs.image[0] = Image{-1, 0, 0};
-  CHECK_NOTHROW(World(model, s, ExecutorConfig{Backend::tbb, 1}, false));
+  CHECK_NOTHROW(World(model, s, systems_for(model), ExecutorConfig{Backend::tbb, 1}, false));
 }
 
 namespace {
@@ -569,7 +570,7 @@ TEST_CASE("translating a dense packing by any vector (positions wrapped) changes
   std::mt19937_64 rng(4);
   std::uniform_real_distribution<double> u(-2.0, 2.0);
   const int n_steps = 5;
-  World ref(model, base, ExecutorConfig{Backend::tbb, 2});
+  World ref(model, base, systems_for(model), ExecutorConfig{Backend::tbb, 2});
   const State r_setup = ref.state();
   ref.step(n_steps);
   const State& r_stepped = ref.state();
@@ -606,7 +607,7 @@ TEST_CASE("translating a dense packing by any vector (positions wrapped) changes
         if (x[a] >= L) x[a] -= L;
       }
     }
-    World w(model, moved, ExecutorConfig{Backend::tbb, 2});
+    World w(model, moved, systems_for(model), ExecutorConfig{Backend::tbb, 2});
     INFO("shift " << shift.transpose());
     for (int stage = 0; stage < 2; ++stage) {
       const State& a = w.state();

@@ -2,6 +2,9 @@
 // angular momentum balance of every contact, bounded energy error of the elastic frictionless
 // packing under velocity Verlet, and bitwise determinism for any thread count.
 #include "engine/world.hpp"
+#include "systems/broadphase.hpp"
+#include "systems/catalogue.hpp"
+#include "systems/contact_pass.hpp"
 #include "support/scenes.hpp"
 
 #include <doctest/doctest.h>
@@ -48,7 +51,7 @@ TEST_CASE("Newton's third law and the angular momentum balance hold for every co
   // velocities and spins, in a cell sheared at constant volume rate (affine term in v_rel).
   State s = test::jittered_lattice(model, 8, 2e-3, 1.00e-3, 1.03e-3, 0.01e-3, 0.5, 300.0, 21);
   s.cell.rate = Vec3(-20.0, 10.0, 10.0);
-  World world(model, s, ExecutorConfig{Backend::tbb, 2});
+  World world(model, s, systems_for(model), ExecutorConfig{Backend::tbb, 2});
   world.step(100);  // tangential and rolling histories build up
   const State& st = world.state();
   const ContactPairs& pairs = st.contacts.pairs;
@@ -158,7 +161,7 @@ struct EnergyRun {
 };
 
 EnergyRun energy_run(const Model& model, const State& s, std::uint64_t steps, double e_star) {
-  World world(model, s, ExecutorConfig{Backend::tbb, 2});
+  World world(model, s, systems_for(model), ExecutorConfig{Backend::tbb, 2});
   EnergyRun out;
   out.start = energy_of(world.state(), e_star);
   const double e0 = out.start.total();
@@ -242,9 +245,9 @@ TEST_CASE("dense frictional packing with rolling, 500 steps: bitwise identical f
     State s = test::jittered_lattice(model, c.n_side, 2e-3, 1.00e-3, 1.03e-3, 0.02e-3, 1.0, 500.0, 99);
     s.cell.rate = Vec3(-30.0, 15.0, 15.0);
     auto run = [&](ExecutorConfig cfg) {
-      World w(model, s, cfg);
+      World w(model, s, systems_for(model), cfg);
       w.step(500);
-      CHECK(w.scratch().broadphase.builds >= 1);
+      CHECK(list_builds(w.scratch()) >= 1);
       return w.state();
     };
     const State reference = run({Backend::serial, 1});
@@ -262,7 +265,7 @@ TEST_CASE("dense frictional packing with rolling, 500 steps: bitwise identical f
 }
 
 TEST_CASE("the contact pass's visiting order and its skipping of open pairs change no result") {
-  // hertz_mindlin visits the pairs of a block grouped by last step's regime (kept in Scratch), and
+  // the contact pass visits the pairs of a block grouped by last step's regime (kept in Scratch), and
   // does not write again the zero outputs and histories of a pair that was open in the last step.
   // A World made from a state starts with no regimes, visits every block in array order and writes
   // every open pair. Stepping a sheared frictional packing one step at a time through fresh Worlds
@@ -287,12 +290,12 @@ TEST_CASE("the contact pass's visiting order and its skipping of open pairs chan
     State s = test::jittered_lattice(model, 12, 2e-3, c.r_min, 1.03e-3, 0.02e-3, c.v_scale, 500.0, 7);
     s.cell.rate = Vec3(-30.0, 15.0, 15.0);
     const ExecutorConfig cfg{Backend::tbb, 2};
-    World world(model, s, cfg);
+    World world(model, s, systems_for(model), cfg);
     world.step(100);
     const State start = world.state();
 
     // The grouping is exercised: pairs at each cap and open, blocks in sorted and in array order.
-    const ContactScratch& hint = world.scratch().contact;
+    const ContactScratch& hint = world.scratch().own<ContactScratch>();
     std::size_t sliding = 0, rolling = 0, open = 0, sorted = 0;
     for (std::uint8_t r : hint.regime) {
       if (r == ContactScratch::k_apart) {
@@ -311,14 +314,14 @@ TEST_CASE("the contact pass's visiting order and its skipping of open pairs chan
     REQUIRE(sorted >= 2);
     REQUIRE(hint.sorted.size() - sorted >= c.min_array_order);
 
-    const std::uint64_t builds_before = world.scratch().broadphase.builds;
+    const std::uint64_t builds_before = list_builds(world.scratch());
     world.step(c.window);
-    const std::uint64_t builds = world.scratch().broadphase.builds - builds_before;
+    const std::uint64_t builds = list_builds(world.scratch()) - builds_before;
     INFO("list builds in the window: " << builds);
     REQUIRE(builds >= c.min_builds);
     State chain = start;
     for (int k = 0; k < c.window; ++k) {
-      World fresh(model, chain, cfg, /*initial_forces=*/false);
+      World fresh(model, chain, systems_for(model), cfg, /*initial_forces=*/false);
       fresh.step(1);
       chain = fresh.state();
     }

@@ -2,10 +2,11 @@
 // force, rebound), the damped restitution, oblique impacts in gross sliding, and the tangential
 // spring while sticking (history and incremental forms).
 #include "engine/world.hpp"
+#include "systems/catalogue.hpp"
 #include "support/scenes.hpp"
 #include "systems/broadphase.hpp"
 #include "systems/force_gather.hpp"
-#include "systems/hertz_mindlin.hpp"
+#include "systems/contact_pass.hpp"
 
 #include <doctest/doctest.h>
 
@@ -112,7 +113,7 @@ Impact run_impact(const Material& mat, double dt, double v_n, double v_t, double
   Impact out;
   out.v0_before = s.particles.velocity[0];
   out.v1_before = s.particles.velocity[1];
-  World world(model, s, ExecutorConfig{Backend::serial, 1});
+  World world(model, s, systems_for(model), ExecutorConfig{Backend::serial, 1});
   const Particles& p = world.state().particles;
   const double mu = mat.friction;
   const Effective p_eff = effective(mat, R);
@@ -376,7 +377,7 @@ struct Held {
 };
 
 std::vector<SystemSpec> contact_systems() {
-  return {make_system<Broadphase>(), make_system<HertzMindlin>(), make_system<ForceGather>()};
+  return {make_system<Broadphase>(), make_system<ContactPass>(), make_system<ForceGather>()};
 }
 
 State held_pair(const Model& model, double delta, std::uint32_t material_0 = 0, std::uint32_t material_1 = 0) {

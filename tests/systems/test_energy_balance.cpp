@@ -29,6 +29,8 @@
 // computes. The ledger must close to round-off, Q must vanish with dt, and W_cell must agree with
 // the homogenizer's stress power V sigma : (-D).
 #include "engine/world.hpp"
+#include "systems/broadphase.hpp"
+#include "systems/catalogue.hpp"
 #include "support/scenes.hpp"
 #include "systems/homogenizer.hpp"
 
@@ -342,20 +344,20 @@ struct Run {
 };
 
 Run run(const Model& model, const State& s, std::uint64_t steps) {
-  World world(model, s, ExecutorConfig{Backend::serial});
+  World world(model, s, systems_for(model), ExecutorConfig{Backend::serial});
   Books books(world);
   Run out;
   books.start(world.state(), world.executor());
   out.k0 = shadow_kinetic(world.state(), model.dt);
   out.e0 = measure(world.model(), world.state(), world.executor()).elastic_energy;
-  const std::uint64_t builds0 = world.scratch().broadphase.builds;
+  const std::uint64_t builds0 = list_builds(world.scratch());
   for (std::uint64_t k = 0; k < steps; ++k) {
     world.step();
     books.step(world.state(), world.executor());
   }
   out.k1 = shadow_kinetic(world.state(), model.dt);
   out.e1 = measure(world.model(), world.state(), world.executor()).elastic_energy;
-  out.builds = world.scratch().broadphase.builds - builds0;
+  out.builds = list_builds(world.scratch()) - builds0;
   out.l = books.ledger();
   return out;
 }

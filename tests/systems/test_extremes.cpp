@@ -4,6 +4,8 @@
 // of velocity Verlet, a sphere crossing more than the skin in one step, a 10:1 radius ratio, N = 1
 // and 2, friction 0 and 10, rolling friction 1.
 #include "engine/world.hpp"
+#include "systems/catalogue.hpp"
+#include "systems/integrate.hpp"
 #include "support/scenes.hpp"
 #include "systems/broadphase.hpp"
 #include "systems/homogenizer.hpp"
@@ -86,7 +88,7 @@ TEST_CASE("time step at 0.9 of the exact stability limit: two spheres touching t
   const double h_omega = c.model.dt * c.omega;
   const double theta = std::acos(1.0 - 0.5 * h_omega * h_omega);
   const double expected = c.model.dt * v_rel / std::sin(theta);
-  World world(c.model, c.state, ExecutorConfig{Backend::serial});
+  World world(c.model, c.state, systems_for(c.model), ExecutorConfig{Backend::serial});
   REQUIRE(world.state().contacts.size() == 2);  // the direct pair and the one across the face
   const double L = world.state().cell.length[0];
   double max_u = 0.0;
@@ -107,7 +109,7 @@ TEST_CASE("time step at 0.9 of the exact stability limit: two spheres touching t
 
 TEST_CASE("time step at 1.5 of the stability limit: the same chain blows up and stops with the step, the particle and the quantity") {
   Chain c = two_sphere_chain(1.5, 1e-4);
-  World world(c.model, c.state, ExecutorConfig{Backend::serial});
+  World world(c.model, c.state, systems_for(c.model), ExecutorConfig{Backend::serial});
   std::string error;
   int steps = 0;
   try {
@@ -133,15 +135,15 @@ TEST_CASE("a run that blows up inside one step(n) call stops at the same step, w
   // step(n) defers the final half kick of all but its last step (World::defers_final_kick); when a
   // step fails, the state handed back must still be the end of that step, as with step(1) calls.
   Chain c = two_sphere_chain(1.5, 1e-4);
-  World single(c.model, c.state, ExecutorConfig{Backend::serial});
+  World single(c.model, c.state, systems_for(c.model), ExecutorConfig{Backend::serial});
   std::string single_error;
   try {
     for (int k = 0; k < 100000; ++k) single.step(1);
   } catch (const SimulationError& e) {
     single_error = e.what();
   }
-  World batched(c.model, c.state, ExecutorConfig{Backend::tbb, 2});
-  REQUIRE(batched.defers_final_kick());
+  World batched(c.model, c.state, systems_for(c.model), ExecutorConfig{Backend::tbb, 2});
+  REQUIRE(batched.defers_work());
   std::string batched_error;
   try {
     batched.step(100000);
@@ -151,7 +153,7 @@ TEST_CASE("a run that blows up inside one step(n) call stops at the same step, w
   REQUIRE_FALSE(single_error.empty());
   CHECK(batched_error == single_error);
   CHECK(batched.state().clock.step == single.state().clock.step);
-  CHECK_FALSE(batched.scratch().kick_pending);
+  CHECK_FALSE(kick_pending(batched.scratch()));
   CHECK(first_difference(batched.state().particles, single.state().particles) == "");
 }
 
@@ -167,7 +169,7 @@ TEST_CASE("a sphere crossing six skins in one step into contact: the list is reb
   add_sphere(s, model, 0, Vec3(L / 2 - 2.0 * R - gap, L / 2, L / 2), R, 0);
   add_sphere(s, model, 1, Vec3(L / 2, L / 2, L / 2), R, 0);
   s.particles.velocity[0] = Vec3((gap + delta) / dt, 0.0, 0.0);
-  World world(model, s, ExecutorConfig{Backend::serial});
+  World world(model, s, systems_for(model), ExecutorConfig{Backend::serial});
   REQUIRE(world.state().contacts.size() == 0);
   world.step();
   const State& st = world.state();
@@ -199,7 +201,7 @@ TEST_CASE("radius ratio 10:1: a head-on elastic impact gives the rigid-body rebo
   add_sphere(s, model, 0, Vec3(L / 2 - R_big - R_small - 2.5 * v * model.dt, L / 2, L / 2), R_small, 0);
   add_sphere(s, model, 1, Vec3(L / 2, L / 2, L / 2), R_big, 0);
   s.particles.velocity[0] = Vec3(v, 0.0, 0.0);
-  World world(model, s, ExecutorConfig{Backend::serial});
+  World world(model, s, systems_for(model), ExecutorConfig{Backend::serial});
   bool touched = false;
   for (int step = 0; step < 2000; ++step) {
     world.step();
@@ -227,7 +229,7 @@ TEST_CASE("N = 1: a lone sphere in a deforming cell meets nothing, not even its 
   add_sphere(s, model, 7, Vec3(1e-3, 2e-3, 0.5e-3), 1e-3, 0);
   s.particles.velocity[0] = Vec3(3.0, -2.0, 1.0);
   s.cell.rate = Vec3(-1.0, 0.5, 0.5);
-  World world(model, s, ExecutorConfig{Backend::tbb, 2});
+  World world(model, s, systems_for(model), ExecutorConfig{Backend::tbb, 2});
   world.step(200);  // 0.2 ms: crosses the faces several times; the cell shrinks 18 % along x
   const State& st = world.state();
   CHECK(st.contacts.size() == 0);
@@ -261,7 +263,7 @@ TEST_CASE("friction 0 and 10 in an oblique impact: no tangential force at all; a
     s.cell.length = s.cell.length0 = Vec3::Constant(L);
     s.particles.velocity[0] = Vec3(v_n / 2, v_t / 2, 0.0);
     s.particles.velocity[1] = -s.particles.velocity[0];
-    World world(model, s, ExecutorConfig{Backend::serial});
+    World world(model, s, systems_for(model), ExecutorConfig{Backend::serial});
     const Particles& p = world.state().particles;
     double worst_spring = 0.0;
     std::vector<int> capped;  // contact steps (0-based) at the Coulomb cap
@@ -364,8 +366,8 @@ TEST_CASE("E from 1e6 to 1e12 Pa and p0 from 1 kPa to 100 MPa: the same physics 
   REQUIRE(stiff.model.dt * time_scale == soft.model.dt);  // sqrt of a 2^-16 scaling is exact
   stiff.model.servo.gain = soft.model.servo.gain * time_scale;
   stiff.model.servo.max_rate = soft.model.servo.max_rate * time_scale;
-  World a(soft.model, soft.state, ExecutorConfig{Backend::tbb, 2});
-  World b(stiff.model, stiff.state, ExecutorConfig{Backend::tbb, 2});
+  World a(soft.model, soft.state, systems_for(soft.model), ExecutorConfig{Backend::tbb, 2});
+  World b(stiff.model, stiff.state, systems_for(stiff.model), ExecutorConfig{Backend::tbb, 2});
   a.step(30000);
   b.step(30000);
   const Measures ma = measure(a.model(), a.state(), a.executor());
@@ -388,7 +390,7 @@ TEST_CASE("E from 1e6 to 1e12 Pa and p0 from 1 kPa to 100 MPa: the same physics 
   // friction and rolling resistance hold chains a softer packing would crush.)
   for (const auto& [young, p0] : {std::pair{1e12, 1e8}, std::pair{1e12, 1e7}, std::pair{1e6, 1e3}}) {
     Compression c = compression(young, p0);
-    World w(c.model, c.state, ExecutorConfig{Backend::tbb, 2});
+    World w(c.model, c.state, systems_for(c.model), ExecutorConfig{Backend::tbb, 2});
     w.step(60000);
     const Measures m = measure(w.model(), w.state(), w.executor());
     const double e_star = e_star_of(c.model.materials[0]);

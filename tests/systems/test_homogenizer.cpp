@@ -3,6 +3,7 @@
 // brute-force force computation, and the derived measures (invariants, Lode angle, void ratio,
 // coordination, rattlers).
 #include "engine/world.hpp"
+#include "systems/catalogue.hpp"
 #include "support/scenes.hpp"
 #include "systems/homogenizer.hpp"
 
@@ -39,7 +40,7 @@ TEST_CASE("homogenizer: strained simple-cubic lattice gives the analytic Hertz s
   for (int z = 0; z < n; ++z)
     for (int y = 0; y < n; ++y)
       for (int x = 0; x < n; ++x) add_sphere(s, model, id++, Vec3((x + 0.5) * a[0], (y + 0.5) * a[1], (z + 0.5) * a[2]), r, 0);
-  World world(model, std::move(s), ExecutorConfig{Backend::serial});
+  World world(model, std::move(s), systems_for(model), ExecutorConfig{Backend::serial});
   const Measures m = measure(world.model(), world.state(), world.executor());
   const double es = e_star(model.materials[0]);
   for (int k = 0; k < 3; ++k) {
@@ -81,7 +82,7 @@ TEST_CASE("homogenizer: stress is symmetric and equals the virial of independent
   model.materials[0].friction = 0.0;
   model.contact.rolling = RollingModel::none;
   State s = test::jittered_lattice(model, 5, 2e-3, 1.01e-3, 1.03e-3, 0.02e-3, 0.0, 0.0, 7);
-  World world(model, s, ExecutorConfig{Backend::tbb, 2});
+  World world(model, s, systems_for(model), ExecutorConfig{Backend::tbb, 2});
   const Measures m = measure(world.model(), world.state(), world.executor());
   const State& st = world.state();
   const Particles& p = st.particles;
@@ -140,7 +141,7 @@ TEST_CASE("measures: rattlers are removed recursively from the mechanical coordi
   add_sphere(s, model, 0, Vec3(5e-3, 5e-3, 5e-3), r, 0);
   add_sphere(s, model, 1, Vec3(5e-3 + 1.999e-3, 5e-3, 5e-3), r, 0);
   add_sphere(s, model, 2, Vec3(5e-3 + 3.998e-3, 5e-3, 5e-3), r, 0);
-  World world(model, std::move(s), ExecutorConfig{Backend::serial});
+  World world(model, std::move(s), systems_for(model), ExecutorConfig{Backend::serial});
   const Measures m = measure(world.model(), world.state(), world.executor());
   CHECK(m.contacts == 2);
   CHECK(m.z == doctest::Approx(4.0 / 3.0));

@@ -1,4 +1,4 @@
-// Rolling resistance (docs/physics.md section 3, Ai et al. 2011; evaluated inside the hertz_mindlin contact pass): epsd2 (spring k_t R*^2, capped at mu_r R* |F_n|),
+// Rolling resistance (docs/physics.md section 3, Ai et al. 2011; evaluated inside the contact pass): epsd2 (spring k_t R*^2, capped at mu_r R* |F_n|),
 // epsd (spring 2.25 k_n mu_r^2 R*^2 plus a dashpot below the cap), cdt (constant torque), none.
 //
 // Scene: two identical spheres held at a fixed overlap along x (n = -x, from sphere 1 to sphere 0,
@@ -10,7 +10,7 @@
 #include "support/scenes.hpp"
 #include "systems/broadphase.hpp"
 #include "systems/force_gather.hpp"
-#include "systems/hertz_mindlin.hpp"
+#include "systems/contact_pass.hpp"
 
 #include <doctest/doctest.h>
 
@@ -42,7 +42,7 @@ Model rolling_model(RollingModel rolling, double dt, double eta_r = 0.0, double 
 }
 
 std::vector<SystemSpec> contact_systems() {
-  return {make_system<Broadphase>(), make_system<HertzMindlin>(), make_system<ForceGather>()};
+  return {make_system<Broadphase>(), make_system<ContactPass>(), make_system<ForceGather>()};
 }
 
 struct Setup {

@@ -2,6 +2,7 @@
 // and closed-loop runs on a small dense sample: isotropic to p0, constant p / constant b, constant
 // sigma3 / constant b.
 #include "engine/world.hpp"
+#include "systems/catalogue.hpp"
 #include "support/scenes.hpp"
 #include "systems/homogenizer.hpp"
 #include "systems/servo.hpp"
@@ -142,7 +143,7 @@ TEST_CASE("servo closed loop: isotropic compression reaches p0 within 1 % on eve
   s.model.servo.p = 1e6;
   s.model.servo.max_rate = 20.0;
   s.model.servo.gain = 200.0;
-  World world(s.model, std::move(s.state), ExecutorConfig{Backend::tbb, 2});
+  World world(s.model, std::move(s.state), systems_for(s.model), ExecutorConfig{Backend::tbb, 2});
   Measures m = run_until(world, 40000);
   // The servo must hold p0 for a while, not pass through it: check over the last 5000 steps.
   double worst = 0.0;
@@ -169,7 +170,7 @@ const Sample& compressed_sample(double p0) {
   s.model.servo.p = p0;
   s.model.servo.max_rate = 20.0;
   s.model.servo.gain = 200.0;
-  World world(s.model, std::move(s.state), ExecutorConfig{Backend::tbb, 2});
+  World world(s.model, std::move(s.state), systems_for(s.model), ExecutorConfig{Backend::tbb, 2});
   world.step(40000);
   s.state = world.state();
   s.state.cell.length0 = s.state.cell.length;
@@ -202,7 +203,7 @@ Tracking shear(Sample s, StressPath path, double b, double p0, double max_strain
   v.max_rate = 2.0 * rate;
   v.integral_time = integral ? 1000.0 * s.model.dt : 0.0;
   s.state.cell.rate = Vec3(-rate, 0.0, 0.0);
-  World world(s.model, std::move(s.state), ExecutorConfig{Backend::tbb, 2}, false);
+  World world(s.model, std::move(s.state), systems_for(s.model), ExecutorConfig{Backend::tbb, 2}, false);
   Tracking t;
   int rows = 0;
   for (;;) {

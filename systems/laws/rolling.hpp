@@ -1,5 +1,5 @@
 #pragma once
-// Rolling resistance (docs/physics.md section 3, Ai et al. 2011) as an evaluator of the contact pass.
+// Rolling laws (docs/physics.md section 3, Ai et al. 2011), evaluated inside the contact pass.
 //
 // epsd2 (LIGGGHTS `rolling_friction epsd2`): k_r = k_t R*^2; M += k_r w_r dt, capped at mu_r R* |F_n|.
 // epsd (Ai type C): k_r = 2.25 k_n mu_r^2 R*^2, same cap, plus a dashpot C_r w_r below the cap,
@@ -13,8 +13,7 @@
 // the contact pass it reuses them from registers. With RollingModel::none the contact pass is
 // instantiated without it and the rolling history is never allocated; cdt keeps no history either,
 // so it allocates none.
-#include "engine/model.hpp"
-#include "components/types.hpp"
+#include "systems/laws/law.hpp"
 
 #include <cmath>
 
@@ -30,6 +29,12 @@ struct RollingInput {
   double i_r;         // kg m^2, rolling inertia (epsd only)
   double mu_r;        // -, rolling friction
 };
+
+/// k_r of the laws with a stored moment (epsd2, epsd), N m/rad.
+template <RollingModel Kind>
+[[gnu::always_inline]] inline double rolling_stiffness(double k_n, double k_t, double mu_r, double r_star) {
+  return Kind == RollingModel::epsd2 ? k_t * r_star * r_star : 2.25 * k_n * mu_r * mu_r * r_star * r_star;
+}
 
 // Update: whether the stored moment advances (false in the setup pass).
 template <RollingModel Kind, bool Update>
@@ -47,8 +52,7 @@ struct RollingEvaluator {
       if (!(wn > 0.0)) return Vec3::Zero();
       return (in.mu_r * in.k_n * in.overlap * in.r_star / wn) * w_r;
     } else {
-      const double k_r = Kind == RollingModel::epsd2 ? in.k_t * in.r_star * in.r_star
-                                                     : 2.25 * in.k_n * in.mu_r * in.mu_r * in.r_star * in.r_star;
+      const double k_r = rolling_stiffness<Kind>(in.k_n, in.k_t, in.mu_r, in.r_star);
       const double cap = in.mu_r * in.r_star * std::abs(in.f_n);
       Vec3 h = history;
       if constexpr (Update) h += (k_r * dt) * w_r;

@@ -1,20 +1,22 @@
-#include "systems/hertz_mindlin.hpp"
+#include "systems/contact_pass.hpp"
 
-#include "systems/rolling.hpp"
+#include "systems/laws/mindlin.hpp"
+#include "systems/laws/normal_laws.hpp"
+#include "systems/laws/rolling.hpp"
+#include "systems/pair_list.hpp"
 
 #include "engine/assert.hpp"
 
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <stdexcept>
 #include <string>
 #include <type_traits>
 
 namespace sandcell {
 
 namespace {
-
-constexpr double k_two_sqrt_5_6 = 1.8257418583505538;  // 2 sqrt(5/6)
 
 struct PairKinematics {
   Vec3 n;           // unit normal, from j to i
@@ -25,80 +27,23 @@ struct PairKinematics {
   Vec3 w_i, w_j;    // rad/s
 };
 
-struct NormalTangential {
-  Vec3 f_t;         // N, tangential force on i
-  double f_n;       // N, normal force (signed)
-  double k_n, k_t;  // N/m
-  unsigned capped;  // 1 at the Coulomb cap, else 0
-};
-
-// Hertz-Mindlin with the LIGGGHTS-form displacement history (u_t, m) or the incremental force
-// history (F_s, N).
-template <TangentialModel Tangential, bool Update>
-struct HertzMindlinEvaluator {
-  const PairMaterial& mat;
-  double dt;
-
-  /// k_n = 4/3 E* sqrt(R* delta), k_t = 8 G* sqrt(R* delta), gamma_n = -2 sqrt(5/6) beta sqrt(S_n m*).
-  [[gnu::always_inline]] inline NormalTangential evaluate(const PairKinematics& c, double k_n, double k_t,
-                                                          double gamma_n, Vec3& history) const {
-    const double gamma_t = gamma_n * mat.damping_ratio_t;  // -2 sqrt(5/6) beta sqrt(S_t m*)
-
-    const double v_n = c.v_rel.dot(c.n);
-    const double f_n = k_n * c.overlap - gamma_n * v_n;
-    const Vec3 v_t = c.v_rel - v_n * c.n + c.n.cross(c.c_i * c.w_i + c.c_j * c.w_j);
-    const double f_cap = mat.friction * std::abs(f_n);
-
-    Vec3 f_t;
-    unsigned capped = 0;
-    Vec3 h = history;
-    if constexpr (Tangential == TangentialModel::history) {
-      // u_t += v_t dt, projected on the tangent plane; F_t = -k_t u_t; at the Coulomb cap the
-      // force is scaled to mu |F_n| (no damping) and u_t set to -F_t / k_t.
-      if constexpr (Update) h += v_t * dt;
-      h -= h.dot(c.n) * c.n;
-      f_t = -k_t * h;
-      const double f2 = f_t.squaredNorm();
-      if (f2 > f_cap * f_cap) {
-        capped = 1;
-        f_t *= f_cap / std::sqrt(f2);
-        h = f_t / -k_t;
-      } else {
-        f_t -= gamma_t * v_t;
-      }
-    } else {
-      // Stored elastic tangential force, rotated into the new tangent plane (projected, magnitude
-      // kept), plus -k_t times the displacement increment; Coulomb cap on it.
-      const double old2 = h.squaredNorm();
-      h -= h.dot(c.n) * c.n;
-      const double new2 = h.squaredNorm();
-      if (new2 > 0.0) h *= std::sqrt(old2 / new2);
-      if constexpr (Update) h -= (k_t * dt) * v_t;
-      const double f2 = h.squaredNorm();
-      if (f2 > f_cap * f_cap) {
-        capped = 1;
-        h *= f_cap / std::sqrt(f2);
-        f_t = h;
-      } else {
-        f_t = h - gamma_t * v_t;
-      }
-    }
-    history = h;
-    return NormalTangential{f_t, f_n, k_n, k_t, capped};
-  }
-};
+// The characteristic velocity of the laws that have one (0: none given; such a law's validate()
+// refuses that).
+double characteristic_velocity(const ContactSettings& contact) {
+  const auto it = contact.parameters.find("characteristic_velocity");
+  return it == contact.parameters.end() ? 0.0 : it->second;
+}
 
 // The pair loop runs in blocks of k_block pairs, in three phases: gather the branch vectors (and
-// the material constants with more than one material; scalar loads), the square roots and
-// divisions of the Hertz stiffness for the whole block (branch-free, so the compiler vectorizes
-// it and the long sqrt/div latencies of different pairs overlap), then the history-dependent
+// the material constants with more than one material; scalar loads), the normal law's stiffness
+// and damping for the whole block (branch-free, so the compiler vectorizes Hertz's square roots
+// and divisions and their long latencies overlap across pairs), then the history-dependent
 // tangential and rolling laws per pair.
 // IEEE sqrt and division are correctly rounded in vector and scalar form alike, so the result
 // of a pair does not depend on the blocking (nor on the thread count).
 // The radii, R* and m* of each pair are read from PairConstants, computed when the list is built:
 // the same values, bitwise, as computed here from the spheres, with two divisions per pair and
-// the loads of both spheres' radii and masses taken out of every step (hertz_mindlin 2.19 ->
-// 1.96 s per 1000 steps on dense-20k, 1 thread).
+// the loads of both spheres' radii and masses taken out of every step.
 constexpr std::size_t k_block = 64;
 static_assert(k_contact_grain % k_block == 0, "blocks must not straddle parallel chunks");
 static_assert(k_block < 256, "phase 3 keeps the visiting order as byte offsets");
@@ -106,7 +51,7 @@ static_assert(k_block < 256, "phase 3 keeps the visiting order as byte offsets")
 struct alignas(64) Block {
   double rx[k_block], ry[k_block], rz[k_block];  // m, branch vector
   double e_star[k_block], g_star[k_block];       // Pa
-  double damp[k_block];                          // -, -2 sqrt(5/6) beta
+  double beta[k_block];                          // -
   const PairMaterial* mat[k_block];
   // Computed in phase 2:
   double inv_dist[k_block];                      // 1/m
@@ -115,7 +60,7 @@ struct alignas(64) Block {
   double gamma_n[k_block];                       // kg/s
 };
 
-template <TangentialModel Tangential, RollingModel Roll, bool Affine, bool Update>
+template <class Normal, class Tangential, RollingModel Roll, bool Affine, bool Update>
 void contact_loop(const Model& model, State& state, Scratch& scratch, Executor& exec) {
   const ContactPairs& pairs = state.read<Component::contact_pairs>();
   const Vec3* __restrict x = state.read<Component::particle_position>().data();
@@ -123,9 +68,9 @@ void contact_loop(const Model& model, State& state, Scratch& scratch, Executor& 
   const Vec3* __restrict w = state.read<Component::particle_angular_velocity>().data();
   const double* __restrict mass = state.read<Component::particle_mass>().data();
   const std::uint32_t* __restrict material = state.read<Component::particle_material>().data();
-  const PairConstants& constants = scratch.read<Component::pair_constants>();
+  const PairConstants& constants = scratch.read<PairConstants>();
   SANDCELL_CHECK(constants.r_star.size() == pairs.size(),
-                 "hertz_mindlin: " + std::to_string(constants.r_star.size()) + " pair constants for " +
+                 "contact: " + std::to_string(constants.r_star.size()) + " pair constants for " +
                      std::to_string(pairs.size()) + " pairs: the pair list must come from the broadphase "
                      "(or World's rebuild of its scratch), which computes them");
   const Cell& cell = state.read<Component::cell>();
@@ -142,7 +87,7 @@ void contact_loop(const Model& model, State& state, Scratch& scratch, Executor& 
   if constexpr (rolling_history) rolling.resize(m);
   // Last step's regimes (ContactScratch) describe the slots of the list they were made for: a new
   // list starts from none (its slots hold other pairs, and no slot's outputs are known to be zero).
-  ContactScratch& hint = scratch.contact;
+  ContactScratch& hint = scratch.own<ContactScratch>();
   if (hint.generation != constants.generation) {
     hint.regime.assign(m, 0);
     hint.order.assign(m, 0);
@@ -182,8 +127,7 @@ void contact_loop(const Model& model, State& state, Scratch& scratch, Executor& 
 
   const PairMaterial* const pair_mat = model.pairs.data();
   const double dt = model.dt;
-  // One material: the constant of every pair (no pairs without materials: then nothing reads it).
-  const double damp_0 = n_mat == 0 ? 0.0 : -k_two_sqrt_5_6 * model.pairs[0].beta;
+  const double v_char = characteristic_velocity(model.contact);
   exec.parallel_for(m, k_contact_grain, [=](std::size_t b, std::size_t e) {
     // The pointers are copied by value into the closure: the pass needs more of them than there
     // are registers, and a spilled copy reloads with one load instead of two through a reference.
@@ -205,35 +149,32 @@ void contact_loop(const Model& model, State& state, Scratch& scratch, Executor& 
             blk.mat[t] = &mat;
             blk.e_star[t] = mat.e_star;
             blk.g_star[t] = mat.g_star;
-            blk.damp[t] = -k_two_sqrt_5_6 * mat.beta;
+            blk.beta[t] = mat.beta;
           }
           // Phase 3 reads these per pair inside a long chain of arithmetic; fetching them here
           // overlaps their cache misses across the block. Only the j side: i changes every ~4
-          // pairs and walks the arrays in order, which the hardware prefetcher follows (the
-          // prefetches of v_i, w_i cost 2 % of the step).
+          // pairs and walks the arrays in order, which the hardware prefetcher follows.
           __builtin_prefetch(&v[j]);
           __builtin_prefetch(&w[j]);
         }
       };
-      // Phase 2: stiffness and damping, branch-free (apart pairs get overlap <= 0, zeros after).
+      // Phase 2: the normal law's stiffness and damping, branch-free (apart pairs get overlap <= 0,
+      // zeros after).
       auto stiffness = [&](auto one_material) {
         constexpr bool one = decltype(one_material)::value;
         for (std::size_t t = 0; t < nb; ++t) {
-          const double e_star = one ? pair_mat[0].e_star : blk.e_star[t];
-          const double g_star = one ? pair_mat[0].g_star : blk.g_star[t];
-          const double damp = one ? damp_0 : blk.damp[t];
+          const LawPair law_pair = one ? LawPair{pair_mat[0].e_star, pair_mat[0].g_star, pair_mat[0].beta, v_char}
+                                       : LawPair{blk.e_star[t], blk.g_star[t], blk.beta[t], v_char};
           const double r2 = blk.rx[t] * blk.rx[t] + blk.ry[t] * blk.ry[t] + blk.rz[t] * blk.rz[t];
           const double dist = std::sqrt(r2);
           const double overlap = (pair_r_i[k0 + t] + pair_r_j[k0 + t]) - dist;
           const double od = overlap > 0.0 ? overlap : 0.0;
           blk.inv_dist[t] = 1.0 / dist;
           blk.overlap[t] = overlap;
-          const double m_star = pair_m_star[k0 + t];
-          const double sqrt_rd = std::sqrt(pair_r_star[k0 + t] * od);
-          const double s_n = 2.0 * e_star * sqrt_rd;
-          blk.k_n[t] = (2.0 / 3.0) * s_n;     // 4/3 E* sqrt(R* delta)
-          blk.k_t[t] = 8.0 * g_star * sqrt_rd;  // = S_t
-          blk.gamma_n[t] = damp * std::sqrt(s_n * m_star);
+          const Stiffness s = Normal::stiffness(law_pair, pair_r_star[k0 + t], pair_m_star[k0 + t], od);
+          blk.k_n[t] = s.k_n;
+          blk.k_t[t] = s.k_t;
+          blk.gamma_n[t] = s.gamma_n;
         }
       };
       if (n_mat == 1) {
@@ -245,15 +186,13 @@ void contact_loop(const Model& model, State& state, Scratch& scratch, Executor& 
       }
       // Phase 3 visits the block's pairs grouped by their regime in the last step: touching below
       // the caps, at the Coulomb cap, at the rolling cap, at both, open. The overlap and cap tests
-      // then run in stretches of the same outcome, which the branch predictor follows. In array
-      // order they come at random, and each miss costs ~50 cycles: on dense-20k shortened by 1 %
-      // (scene B), a quarter of the touching pairs slide and 59 % are at the rolling cap (means
-      // over its 20,000 steps), and a pair changes regime about 5 times in 10,000 steps; on
-      // dense-20k a quarter of the candidate pairs are open. The order is a stable counting sort of
-      // the block by regime, made again only when a regime in the block changed in the last step;
-      // a block of pairs all touching below the caps keeps array order. Scene B over 20,000 steps:
-      // grouping by the caps took hertz_mindlin from 29.5-31.7 to 23.6-24.1 s on 2 threads.
-      // An open pair already marked open is not written: its outputs are zero since it opened.
+      // then run in stretches of the same outcome, which the branch predictor follows; in array
+      // order they come at random (in a dense sheared packing a good part of the touching pairs
+      // slide or roll at their caps, and a pair changes regime only a few times in 10,000 steps).
+      // The order is a stable counting sort of the block by regime, made again only when a regime
+      // in the block changed in the last step; a block of pairs all touching below the caps keeps
+      // array order. An open pair already marked open is not written: its outputs are zero since
+      // it opened. docs/performance.md gives the measured effect.
       const std::size_t block = k0 / k_block;
       std::uint8_t* __restrict order = order_all + k0;
       if (stale[block]) {
@@ -267,7 +206,7 @@ void contact_loop(const Model& model, State& state, Scratch& scratch, Executor& 
         stale[block] = 0;
       }
       unsigned changed = 0;
-      // Phase 3: tangential and rolling laws, outputs.
+      // Phase 3: normal force, tangential and rolling laws, outputs.
       auto visit = [&](std::size_t t) __attribute__((always_inline)) {
         const std::size_t k = k0 + t;
         if (!(blk.overlap[t] > 0.0)) {
@@ -295,9 +234,14 @@ void contact_loop(const Model& model, State& state, Scratch& scratch, Executor& 
         c.w_i = w[i];
         c.w_j = w[j];
         const PairMaterial& mat = n_mat == 1 ? pair_mat[0] : *blk.mat[t];
-        const HertzMindlinEvaluator<Tangential, Update> law{mat, dt};
-        const NormalTangential nt = law.evaluate(c, blk.k_n[t], blk.k_t[t], blk.gamma_n[t], hist_t[k]);
-        const Vec3 arm_torque = c.n.cross(nt.f_t);  // torque on i is -c_i n x F_t, on j -c_j n x F_t
+        const double k_n = blk.k_n[t], k_t = blk.k_t[t], gamma_n = blk.gamma_n[t];
+        const double v_n = c.v_rel.dot(c.n);
+        const double f_n = Normal::force(k_n, gamma_n, c.overlap, v_n);
+        const Vec3 v_t = c.v_rel - v_n * c.n + c.n.cross(c.c_i * c.w_i + c.c_j * c.w_j);
+        const double f_cap = mat.friction * std::abs(f_n);
+        const TangentialResult tr = Tangential::template force<Update>(c.n, v_t, k_t, Normal::gamma_t(mat, gamma_n),
+                                                                       f_cap, dt, hist_t[k]);
+        const Vec3 arm_torque = c.n.cross(tr.f_t);  // torque on i is -c_i n x F_t, on j -c_j n x F_t
         Vec3 t_i = -c.c_i * arm_torque;
         Vec3 t_j = -c.c_j * arm_torque;
         unsigned rolling_capped = 0;
@@ -309,16 +253,16 @@ void contact_loop(const Model& model, State& state, Scratch& scratch, Executor& 
             const double d = mass[j] * pair_r_j[k] * pair_r_j[k];
             i_r = 1.4 * a * d / (a + d);
           }
-          const Vec3 moment = roll.evaluate(RollingInput{c.n, c.w_i - c.w_j, c.overlap, nt.f_n, nt.k_n, nt.k_t,
-                                                         c.r_star, i_r, mat.rolling_friction},
+          const Vec3 moment = roll.evaluate(RollingInput{c.n, c.w_i - c.w_j, c.overlap, f_n, k_n, k_t, c.r_star, i_r,
+                                                         mat.rolling_friction},
                                             rolling_history ? hist_r[k] : no_history, rolling_capped);
           t_i -= moment;
           t_j += moment;
         }
-        force[k] = nt.f_n * c.n + nt.f_t;
+        force[k] = f_n * c.n + tr.f_t;
         torque_i[k] = t_i;
         torque_j[k] = t_j;
-        const std::uint8_t now = static_cast<std::uint8_t>(nt.capped | rolling_capped);
+        const std::uint8_t now = static_cast<std::uint8_t>(tr.capped | rolling_capped);
         if (now != regime[k]) [[unlikely]] {  // a few times per pair in 10,000 steps
           regime[k] = now;
           changed = 1;
@@ -334,37 +278,115 @@ void contact_loop(const Model& model, State& state, Scratch& scratch, Executor& 
   });
 }
 
-template <TangentialModel T, RollingModel R, bool Affine>
-void dispatch_update(const Model& model, State& state, Scratch& scratch, Executor& exec) {
-  // The setup pass (forces without advancing the history) is rare: the stepping pass is compiled
-  // without the test.
-  if (scratch.setup) contact_loop<T, R, Affine, false>(model, state, scratch, exec);
-  else contact_loop<T, R, Affine, true>(model, state, scratch, exec);
+// Calls fn(std::type_identity<L>{}) for the law of `list` for which match(L) holds; false if none.
+template <class Match, class Fn, class... L>
+bool select_law(LawList<L...>, Match match, Fn&& fn) {
+  return ((match(std::type_identity<L>{}) ? (fn(std::type_identity<L>{}), true) : false) || ...);
 }
 
-template <TangentialModel T, RollingModel R>
-void dispatch_affine(const Model& model, State& state, Scratch& scratch, Executor& exec) {
-  if (model.contact.liggghts_compat) dispatch_update<T, R, false>(model, state, scratch, exec);
-  else dispatch_update<T, R, true>(model, state, scratch, exec);
+template <class... L>
+std::string names_of(LawList<L...>) {
+  std::string out;
+  ((out += (out.empty() ? "" : ", ") + std::string(L::name)), ...);
+  return out;
 }
 
-template <TangentialModel T>
-void dispatch_rolling(const Model& model, State& state, Scratch& scratch, Executor& exec) {
-  switch (model.contact.rolling) {
-    case RollingModel::none: dispatch_affine<T, RollingModel::none>(model, state, scratch, exec); break;
-    case RollingModel::epsd2: dispatch_affine<T, RollingModel::epsd2>(model, state, scratch, exec); break;
-    case RollingModel::epsd: dispatch_affine<T, RollingModel::epsd>(model, state, scratch, exec); break;
-    case RollingModel::cdt: dispatch_affine<T, RollingModel::cdt>(model, state, scratch, exec); break;
-  }
+// Calls fn(normal, tangential, rolling) with the model's laws as std::type_identity<Law> (and the
+// rolling model as std::integral_constant); throws std::invalid_argument on an unregistered name.
+template <class Fn>
+void with_laws(const ContactSettings& contact, Fn&& fn) {
+  const bool found = select_law(
+      NormalLaws{}, [&](auto law) { return decltype(law)::type::name == contact.normal; },
+      [&](auto normal) {
+        select_law(
+            TangentialLaws{}, [&](auto law) { return decltype(law)::type::id == contact.tangential; },
+            [&](auto tangential) {
+              const auto rolling = [&](auto roll) { fn(normal, tangential, roll); };
+              switch (contact.rolling) {
+                case RollingModel::none: rolling(std::integral_constant<RollingModel, RollingModel::none>{}); break;
+                case RollingModel::epsd2: rolling(std::integral_constant<RollingModel, RollingModel::epsd2>{}); break;
+                case RollingModel::epsd: rolling(std::integral_constant<RollingModel, RollingModel::epsd>{}); break;
+                case RollingModel::cdt: rolling(std::integral_constant<RollingModel, RollingModel::cdt>{}); break;
+              }
+            });
+      });
+  if (!found)
+    throw std::invalid_argument("contact.normal = \"" + contact.normal + "\": not a registered normal law (" +
+                                names_of(NormalLaws{}) + ")");
+}
+
+template <bool Update>
+void run_pass(const Model& model, State& state, Scratch& scratch, Executor& exec) {
+  with_laws(model.contact, [&](auto normal, auto tangential, auto roll) {
+    using N = typename decltype(normal)::type;
+    using T = typename decltype(tangential)::type;
+    constexpr RollingModel R = decltype(roll)::value;
+    if (model.contact.liggghts_compat) contact_loop<N, T, R, false, Update>(model, state, scratch, exec);
+    else contact_loop<N, T, R, true, Update>(model, state, scratch, exec);
+  });
 }
 
 }  // namespace
 
-void HertzMindlin::run(const Model& model, State& state, Scratch& scratch, Executor& exec) {
-  if (model.contact.tangential == TangentialModel::history)
-    dispatch_rolling<TangentialModel::history>(model, state, scratch, exec);
-  else
-    dispatch_rolling<TangentialModel::incremental>(model, state, scratch, exec);
+void ContactPass::run(const Model& model, State& state, Scratch& scratch, Executor& exec) {
+  run_pass<true>(model, state, scratch, exec);
+}
+
+void ContactPass::setup(const Model& model, State& state, Scratch& scratch, Executor& exec) {
+  // The forces of the initial configuration, the histories left as they are (as LAMMPS/LIGGGHTS
+  // do in `run 0` setup), so setting up a scene does not advance it.
+  run_pass<false>(model, state, scratch, exec);
+}
+
+void ContactPass::prepare(const Model& model, State& state) {
+  with_laws(model.contact, [&](auto normal, auto, auto) {
+    using N = typename decltype(normal)::type;
+    for (const auto& [key, value] : model.contact.parameters)
+      if (std::find(N::parameters.begin(), N::parameters.end(), key) == N::parameters.end()) {
+        std::string allowed;
+        for (std::string_view k : N::parameters) allowed += (allowed.empty() ? "" : ", ") + std::string(k);
+        throw std::invalid_argument("contact.parameters." + key + ": not a parameter of the " + std::string(N::name) +
+                                    " law (" + (allowed.empty() ? "it takes none" : "it takes " + allowed) + ")");
+      }
+    N::validate(model.contact);
+  });
+  // Only the laws with a stored moment keep one (cdt has none).
+  state.contacts.has_rolling = model.contact.rolling == RollingModel::epsd2 || model.contact.rolling == RollingModel::epsd;
+  if (!state.contacts.has_rolling) state.contacts.rolling.clear();
+}
+
+std::string normal_law_names() { return names_of(NormalLaws{}); }
+
+double contact_elastic_energy(const Model& model, const State& state) {
+  if (model.pairs.empty()) return 0.0;  // a model World has not finalized: no material table
+  double elastic = 0.0;
+  with_laws(model.contact, [&](auto normal, auto tangential, auto) {
+    using N = typename decltype(normal)::type;
+    using T = typename decltype(tangential)::type;
+    const Particles& p = state.particles;
+    const Contacts& c = state.contacts;
+    for (std::size_t k = 0; k < c.pairs.size(); ++k) {
+      const std::uint32_t i = c.pairs.i[k], j = c.pairs.j[k];
+      const Vec3 r = p.position[i] - p.position[j] - image_offset(c.pairs.image[k], state.cell.length);
+      const double reach = p.radius[i] + p.radius[j];
+      const double d2 = r.squaredNorm();
+      if (!(d2 < reach * reach)) continue;
+      const double overlap = reach - std::sqrt(d2);
+      const double r_star = p.radius[i] * p.radius[j] / reach;
+      const double m_star = p.mass[i] * p.mass[j] / (p.mass[i] + p.mass[j]);
+      const PairMaterial& mat = model.pair(p.material[i], p.material[j]);
+      const AtRest a = N::at_rest(mat, model.contact, r_star, m_star, overlap);
+      elastic += a.energy;
+      if (k < c.tangential.size() && a.k_t > 0.0) elastic += T::energy(a.k_t, c.tangential[k].squaredNorm());
+      if (c.has_rolling && k < c.rolling.size()) {  // epsd2 or epsd: the laws with a stored moment
+        const double k_r = model.contact.rolling == RollingModel::epsd2
+                               ? rolling_stiffness<RollingModel::epsd2>(a.k_n, a.k_t, mat.rolling_friction, r_star)
+                               : rolling_stiffness<RollingModel::epsd>(a.k_n, a.k_t, mat.rolling_friction, r_star);
+        if (k_r > 0.0) elastic += 0.5 * c.rolling[k].squaredNorm() / k_r;
+      }
+    }
+  });
+  return elastic;
 }
 
 }  // namespace sandcell

@@ -1,0 +1,81 @@
+#pragma once
+// Tangential laws: Mindlin's no-slip spring with a Coulomb cap (docs/physics.md section 2), in the
+// two history forms of ContactSettings::tangential. The stiffness k_t and the damping gamma_t come
+// from the normal law; the history is the contact component's `tangential` field.
+//
+// MindlinHistory (LIGGGHTS `tangential history`): spring displacement u_t (m),
+//   u_t += v_t dt, projected on the tangent plane; F_t = -k_t u_t - gamma_t v_t; at the cap
+//   (|k_t u_t| > mu |F_n|) F_t = mu |F_n| in the direction of -u_t, undamped, and u_t = -F_t / k_t.
+// MindlinIncremental: stored elastic force F_s (N), rotated into the new tangent plane (projected,
+//   magnitude kept), F_s -= k_t v_t dt; at the cap F_s is scaled to mu |F_n| and F_t = F_s, else
+//   F_t = F_s - gamma_t v_t.
+// Update: whether the history advances (false in the setup pass, which freezes it).
+#include "systems/laws/law.hpp"
+
+#include <cmath>
+
+namespace sandcell {
+
+struct TangentialResult {
+  Vec3 f_t;         // N, tangential force on i
+  unsigned capped;  // 1 at the Coulomb cap, else 0
+};
+
+struct MindlinHistory {
+  static constexpr TangentialModel id = TangentialModel::history;
+
+  template <bool Update>
+  [[gnu::always_inline]] static inline TangentialResult force(const Vec3& n, const Vec3& v_t, double k_t,
+                                                             double gamma_t, double f_cap, double dt, Vec3& history) {
+    Vec3 h = history;
+    if constexpr (Update) h += v_t * dt;
+    h -= h.dot(n) * n;
+    Vec3 f_t = -k_t * h;
+    unsigned capped = 0;
+    const double f2 = f_t.squaredNorm();
+    if (f2 > f_cap * f_cap) {
+      capped = 1;
+      f_t *= f_cap / std::sqrt(f2);
+      h = f_t / -k_t;
+    } else {
+      f_t -= gamma_t * v_t;
+    }
+    history = h;
+    return TangentialResult{f_t, capped};
+  }
+  /// Stored energy 1/2 k_t |u_t|^2, J.
+  static double energy(double k_t, double h2) { return 0.5 * k_t * h2; }
+};
+
+struct MindlinIncremental {
+  static constexpr TangentialModel id = TangentialModel::incremental;
+
+  template <bool Update>
+  [[gnu::always_inline]] static inline TangentialResult force(const Vec3& n, const Vec3& v_t, double k_t,
+                                                             double gamma_t, double f_cap, double dt, Vec3& history) {
+    Vec3 h = history;
+    const double old2 = h.squaredNorm();
+    h -= h.dot(n) * n;
+    const double new2 = h.squaredNorm();
+    if (new2 > 0.0) h *= std::sqrt(old2 / new2);
+    if constexpr (Update) h -= (k_t * dt) * v_t;
+    Vec3 f_t;
+    unsigned capped = 0;
+    const double f2 = h.squaredNorm();
+    if (f2 > f_cap * f_cap) {
+      capped = 1;
+      h *= f_cap / std::sqrt(f2);
+      f_t = h;
+    } else {
+      f_t = h - gamma_t * v_t;
+    }
+    history = h;
+    return TangentialResult{f_t, capped};
+  }
+  /// Stored energy |F_s|^2 / (2 k_t), J.
+  static double energy(double k_t, double h2) { return 0.5 * h2 / k_t; }
+};
+
+using TangentialLaws = LawList<MindlinHistory, MindlinIncremental>;
+
+}  // namespace sandcell
