@@ -1,0 +1,541 @@
+"""Strain localization in a sandcell triaxial test: is the incremental strain field homogeneous or banded?
+
+    triaxial localization RESULTS.h5... [--out DIR] [--grid G] [--whole] [--slabs K]
+
+Reads the particle snapshots of each shearing results file (`output.snapshot_interval` sets how
+many; ~1 % of axial strain apart suits the method) and, for each pair of consecutive snapshots a, b
+(with --whole: the first and the last only, one increment over the whole test):
+  1. matches the particles by id and takes their non-affine displacement: the cell deforms
+     affinely, so a particle that follows it keeps its fractional coordinate s = x / L (mod 1), and
+     u = wrap(s_b - s_a) L_b, wrap to [-1/2, 1/2) (the increments' non-affine motion is far below
+     half a cell).
+  2. bins the particles by s_a into a periodic G x G x G grid (default G = max(3, round((N/40)^1/3)),
+     ~40 particles a bin) and averages u per bin; an empty bin is an error (use a smaller --grid).
+  3. differentiates the bin means by periodic central differences, dU/dx_m = (U[+1] - U[-1]) /
+     (2 L_m / G), with L the mean of L_a and L_b (the midpoint of the increment, as the
+     logarithmic affine strain is), and takes the local strain increment of each bin,
+     deps = -(diag(ln(L_b / L_a)) + sym grad U), compression positive like the series; its
+     deviatoric invariant deps_q = sqrt(2/3 e:e) (e its deviator) and volumetric part tr deps.
+  4. reports per increment: the macroscopic deps_q (affine part alone), the mean and the coefficient
+     of variation of the local deps_q, the top-10 % share (the part of the summed local deps_q
+     carried by the 10 % of bins with the largest; 0.10 when uniform, with a fractional last bin),
+     and the band mode: a planar band in a periodic cell has a normal along a reciprocal lattice
+     vector, so it shows as power of the local deps_q field (mean removed) concentrated in one low
+     Fourier mode (h, k, l) in [-2, 2]^3, +-(h, k, l) one mode. The strongest mode's share of the
+     variance (Parseval) is given next to the same share of the bins randomly permuted (mean of 20
+     permutations, fixed seed): the share a field of noise would reach. The band normal is
+     n ~ (h/L_1, k/L_2, l/L_3); its angle to axis 1 (the most compressed) is reported.
+The sampling of ~40 particles a bin leaves a noise floor in the local field: the CV and the mean
+local deps_q include it, the shuffled share measures it.
+
+Band profile (whatever --whole says): is the band denser or looser than the rest? The strongest mode
+(h, k, l) of the whole-test increment (first snapshot to last) is the file's band if its share is
+above 3 times the shuffled one (else "no band", and no profile). xi = frac(h s_1 + k s_2 + l s_3) is
+kept by the cell's affine deformation, so K slabs of equal xi width (--slabs, default 10) are material
+slabs but for the non-affine motion, each V_cell / K of the cell at every snapshot; they lie across
+the band, spacing d = 1 / |n| between the mode's planes, d / K thick.
+  - solid volume per slab at every snapshot, exact: each sphere is cut by the slab planes it crosses
+    into caps and zones (V = pi (r + z)^2 (2r - z) / 3 below a plane at z from the centre), wrapped
+    across xi = 0/1; the void ratio of slab j is e_j = (V_cell / K - V_s,j) / V_s,j.
+  - local strain per slab over the whole test: the particles' non-affine displacement (as in 1.)
+    averaged per slab of their xi at the first snapshot, differentiated along the normal by periodic
+    central differences (zeta = xi d, d in the mean cell), deps = -(diag ln(L_b / L_a) + sym(dU/dzeta
+    n^T)); its deps_q locates the band: the slabs above the mean by more than half the way to the
+    largest. The rest is "outside".
+Its outputs: <stem>-localization-band.csv (one row per snapshot: step, eps_1, e of the band slabs
+together, of the outside, of all slabs, which is the series' e = V_cell / V_s - 1, and of each slab),
+a "Band profile" section in the summary and a third column in the figure (deps_q and deps_v per slab;
+e per slab at the first, middle and last snapshot), and one printed line.
+
+Writes, into --out (default: next to each input), <stem>-localization.csv (one row per increment),
+<stem>-localization.md (summary) and <stem>-localization.png: the statistics against eps_1 over q/p
+and e, and maps of the local deps_q of the last increment and of the increment with the largest
+mode share, averaged along an axis in the plane of the band (its mode component 0; a middle slice
+normal to axis 2 when it has none), and the band profile. One line per increment is printed.
+Exit status: 0 done (with or without a band); 2 bad input (unreadable file, fewer than 2 snapshots,
+bad --grid or --slabs, an empty bin or slab); 1 numpy, matplotlib or h5py missing.
+"""
+import argparse
+import csv
+import io
+import math
+import os
+import sys
+
+import numpy as np
+
+from .results import InputError, open_results, read_series, read_snapshot, snapshot_names  # noqa: F401
+
+
+PROG = os.environ.get("SANDCELL_ANALYZE_PROG", "localization.py")
+TOP = 0.10            # the top-share fraction of bins
+MAX_ORDER = 2         # mode components searched: [-2, 2]
+SHUFFLES, SEED = 20, 12345
+SLABS = 10            # default slabs across the band's period
+BAND_CONTRAST = 3.0   # a band: the whole test's mode share above this many times the shuffled share
+COLUMNS = ["step_a", "step_b", "eps1_mid", "deps_q_macro", "deps_v_macro", "deps_q_mean", "deps_q_cv",
+           "top10_share", "mode_h", "mode_k", "mode_l", "mode_share", "shuffled_share", "normal_angle_deg",
+           "deps_v_std"]
+
+
+def fail(msg, code=2):
+    print(f"{PROG}: {msg}", file=sys.stderr)
+    sys.exit(code)
+
+
+def default_grid(n):
+    return max(3, round((n / 40.0) ** (1.0 / 3.0)))
+
+
+def strain_invariants(deps):
+    """(deps_q, deps_v) of strain tensors [..., 3, 3]."""
+    vol = np.trace(deps, axis1=-2, axis2=-1)
+    dev = deps - vol[..., None, None] * np.eye(3) / 3.0
+    return np.sqrt(2.0 / 3.0 * np.sum(dev * dev, axis=(-2, -1))), vol
+
+
+def non_affine(id_a, x_a, L_a, id_b, x_b, L_b):
+    """The particles matched by id (indices into snapshot a), their fractional coordinates s_a and their
+    non-affine displacements u = wrap(s_b - s_a) L_b."""
+    _, ia, ib = np.intersect1d(id_a, id_b, assume_unique=True, return_indices=True)
+    s_a = x_a[ia] / L_a
+    ds = x_b[ib] / L_b - s_a
+    return ia, s_a, (ds - np.floor(ds + 0.5)) * L_b
+
+
+def local_strain(id_a, x_a, L_a, id_b, x_b, L_b, G):
+    """Local strain increments [G, G, G, 3, 3] (compression positive) between two snapshots, and the
+    particles matched. Raises ValueError on an empty bin."""
+    L_a, L_b = np.asarray(L_a, float), np.asarray(L_b, float)
+    ia, s_a, u = non_affine(id_a, x_a, L_a, id_b, x_b, L_b)
+    # floor then mod: a coordinate a hair below 0 (unwrapped) lands in the last bin, not at index -1
+    cell = np.floor(s_a * G).astype(np.int64) % G
+    flat = (cell[:, 0] * G + cell[:, 1]) * G + cell[:, 2]
+    count = np.bincount(flat, minlength=G ** 3)
+    if not count.all():
+        raise ValueError(f"{np.count_nonzero(count == 0)} of {G ** 3} bins are empty")
+    U = np.stack([np.bincount(flat, u[:, c], G ** 3) / count for c in range(3)], -1).reshape(G, G, G, 3)
+    spacing = 0.5 * (L_a + L_b) / G
+    grad = np.stack([(np.roll(U, -1, m) - np.roll(U, 1, m)) / (2.0 * spacing[m]) for m in range(3)], -1)  # [.., i, m]
+    affine = np.diag(np.log(L_b / L_a))
+    return -(affine + 0.5 * (grad + np.swapaxes(grad, -1, -2))), len(ia)
+
+
+def mode_table(G):
+    """The distinct modes +-(h, k, l), |components| <= 2, on a G-grid: [(hkl, flat FFT indices)],
+    lowest order first (on a small grid +-2 can alias onto +-1; each index set is kept once)."""
+    seen, table = set(), []
+    r = range(-MAX_ORDER, MAX_ORDER + 1)
+    for hkl in sorted(((h, k, l) for h in r for k in r for l in r),  # noqa: E741 (Miller indices h, k, l)
+                      key=lambda v: (sum(map(abs, v)), v)):
+        if hkl == (0, 0, 0):
+            continue
+        idx = frozenset(np.ravel_multi_index(tuple(sgn * c % G for c in hkl), (G, G, G)) for sgn in (1, -1))
+        if idx not in seen:
+            seen.add(idx)
+            first = next(c for c in hkl if c)
+            table.append((tuple(c if first > 0 else -c for c in hkl), np.array(sorted(idx))))
+    return table
+
+
+def strongest_mode(field, table):
+    """(hkl, share of the variance) of the strongest mode of the field; (0, 0, 0), NaN for a field uniform to
+    round-off (a mode of round-off would be noise)."""
+    if field.std() <= 1e-9 * abs(field.mean()):
+        return (0, 0, 0), math.nan
+    power = np.abs(np.fft.fftn(field - field.mean())).ravel() ** 2
+    shares = np.array([power[idx].sum() for _, idx in table]) / power.sum()
+    best = int(np.argmax(shares))
+    return table[best][0], float(shares[best])
+
+
+def top_share(values, fraction=TOP):
+    """Part of the sum carried by the largest `fraction` of the values (the last one counted in part)."""
+    v = np.sort(values.ravel())[::-1]
+    k = fraction * v.size
+    m = int(k)
+    total = v.sum()
+    return float((v[:m].sum() + (k - m) * (v[m] if m < v.size else 0.0)) / total) if total > 0 else math.nan
+
+
+def increment_stats(deps, L_a, L_b, table, rng_seed=SEED):
+    """The statistics of one increment's local strain field (a dict, keys as COLUMNS) and its deps_q field."""
+    q, v = strain_invariants(deps)
+    q_macro, v_macro = strain_invariants(-np.diag(np.log(np.asarray(L_b, float) / np.asarray(L_a, float))))
+    hkl, share = strongest_mode(q, table)
+    rng = np.random.default_rng(rng_seed)
+    shuffled = float(np.mean([strongest_mode(rng.permutation(q.ravel()).reshape(q.shape), table)[1]
+                              for _ in range(SHUFFLES)]))
+    L = 0.5 * (np.asarray(L_a, float) + np.asarray(L_b, float))
+    normal = np.array(hkl, float) / L
+    mean = float(q.mean())
+    return dict(deps_q_macro=float(q_macro), deps_v_macro=float(v_macro), deps_q_mean=mean,
+                deps_q_cv=float(q.std() / mean) if mean > 0 else math.nan, top10_share=top_share(q),
+                mode_h=hkl[0], mode_k=hkl[1], mode_l=hkl[2], mode_share=share, shuffled_share=shuffled,
+                normal_angle_deg=math.degrees(math.atan2(np.hypot(normal[1], normal[2]), abs(normal[0])))
+                if any(hkl) else math.nan,
+                deps_v_std=float(v.std())), q
+
+
+def mode_geometry(L, hkl):
+    """Plane spacing d (m) and unit normal of the mode (h, k, l) in a cell of edges L: its field is constant on the
+    planes n . x = const (mod 1), n = (h/L_1, k/L_2, l/L_3), d = 1 / |n| apart."""
+    n = np.asarray(hkl, float) / np.asarray(L, float)
+    d = 1.0 / np.linalg.norm(n)
+    return d, n * d
+
+
+def mode_coordinate(x, L, hkl):
+    """xi = frac(h s_1 + k s_2 + l s_3) in [0, 1), s = x / L: the position across the mode's planes. The cell's affine
+    deformation keeps it, so a slab of xi holds the same particles at every snapshot but for their non-affine motion."""
+    xi = (np.asarray(x, float) / np.asarray(L, float)) @ np.asarray(hkl, float)
+    xi -= np.floor(xi)
+    return np.where(xi < 1.0, xi, 0.0)  # -1e-18 - floor(-1e-18) rounds to 1.0
+
+
+def sphere_below(t, r):
+    """Volume of a sphere of radius r on the negative side of a plane at signed distance t from its centre (t beyond
+    +-r: all or nothing): the cap pi (r + t)^2 (2r - t) / 3, above the centre the sphere less the cap above (the
+    smaller part is the one computed, for accuracy)."""
+    t = np.clip(t, -r, r)
+    h = r - np.abs(t)  # height of the smaller cap
+    cap = np.pi * h * h * (2.0 * r + np.abs(t)) / 3.0
+    return np.where(t <= 0.0, cap, 4.0 / 3.0 * np.pi * r ** 3 - cap)
+
+
+def slab_solid_volumes(x, r, L, hkl, K):
+    """Solid volume (m^3) of the spheres (centres x, radii r) in each of K slabs of equal xi width across the mode
+    (h, k, l): slab j spans xi in [j/K, (j+1)/K), distances [j d/K, (j+1) d/K) mod d along the normal. Exact: each
+    sphere is cut by every slab plane it crosses (r may exceed d/K) into pieces that go to their slabs modulo K (a
+    sphere across xi = 0/1 wraps). The pieces telescope: the slabs sum to the spheres' volume to round-off."""
+    d, _ = mode_geometry(L, hkl)
+    w = d / K
+    r = np.broadcast_to(np.asarray(r, float), (len(x),))[:, None]
+    z = mode_coordinate(x, L, hkl)[:, None] * d
+    first = np.floor((z - r) / w).astype(np.int64)  # the slab plane below each sphere
+    pieces = int((np.floor((z + r) / w).astype(np.int64) - first).max()) + 1  # the most slabs a sphere touches
+    planes = first + np.arange(pieces + 1)
+    vol = np.diff(sphere_below(planes * w - z, r), axis=1)  # piece j: between planes j and j + 1
+    return np.bincount((planes[:, :-1] % K).ravel(), vol.ravel(), K)
+
+
+def slab_strain(id_a, x_a, L_a, id_b, x_b, L_b, hkl, K):
+    """Local strain [K, 3, 3] (compression positive) of K slabs across the mode (h, k, l) between two snapshots: the
+    non-affine displacement averaged per slab of the particles' xi at a, differentiated along the normal by periodic
+    central differences over zeta = xi d (d and the normal in the mean cell, as local_strain's gradients).
+    Raises ValueError on an empty slab."""
+    L_a, L_b = np.asarray(L_a, float), np.asarray(L_b, float)
+    ia, _, u = non_affine(id_a, x_a, L_a, id_b, x_b, L_b)
+    slab = np.floor(mode_coordinate(x_a[ia], L_a, hkl) * K).astype(np.int64) % K
+    count = np.bincount(slab, minlength=K)
+    if not count.all():
+        raise ValueError(f"{np.count_nonzero(count == 0)} of {K} slabs are empty")
+    U = np.stack([np.bincount(slab, u[:, c], K) / count for c in range(3)], -1)
+    d, normal = mode_geometry(0.5 * (L_a + L_b), hkl)
+    grad = ((np.roll(U, -1, 0) - np.roll(U, 1, 0)) / (2.0 * d / K))[:, :, None] * normal  # [slab, i, m]
+    return -(np.diag(np.log(L_b / L_a)) + 0.5 * (grad + np.swapaxes(grad, -1, -2)))
+
+
+def band_slabs(q):
+    """The band's slabs (a mask): deps_q above the mean by more than half the way to the largest (that one at least)."""
+    mean = q.mean()
+    band = q - mean > 0.5 * (q.max() - mean)
+    band[np.argmax(q)] = True
+    return band
+
+
+def void_ratio(volume, solid):
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return (volume - solid) / solid
+
+
+def band_profile(f, path, series, G, K):
+    """The band profile of a results file (a dict; "rows" None with a "note" when there is no band): the strongest
+    mode of the whole-test increment, the local strain of K slabs across it over the whole test, and the void ratio
+    per slab, of the band's slabs, of the rest and of all at every snapshot."""
+    names = snapshot_names(f, path)  # the stage's end replacing the last interval snapshot, as the increments
+    step_a, id_a, x_a, L_a = read_snapshot(f, names[0], path)
+    step_b, id_b, x_b, L_b = read_snapshot(f, names[-1], path)
+    try:
+        deps, _ = local_strain(id_a, x_a, L_a, id_b, x_b, L_b, G)
+    except ValueError as e:
+        fail(f"{path}: whole test, steps {step_a}-{step_b}: {e} (G = {G}): use a smaller --grid")
+    stats, _ = increment_stats(deps, L_a, L_b, mode_table(G))
+    hkl = (stats["mode_h"], stats["mode_k"], stats["mode_l"])
+    out = dict(hkl=hkl, share=stats["mode_share"], shuffled=stats["shuffled_share"], K=K,
+               angle=stats["normal_angle_deg"], steps=(step_a, step_b), rows=None)
+    if not any(hkl):
+        out["note"] = f"no band: the whole test's local deps_q (steps {step_a}-{step_b}) is uniform to round-off"
+        return out
+    if not stats["mode_share"] > BAND_CONTRAST * stats["shuffled_share"]:
+        out["note"] = (f"no band: the whole test's strongest mode {mode_str(hkl)} holds {stats['mode_share']:.3f} of "
+                       f"the variance, not above {BAND_CONTRAST:g} x the shuffled {stats['shuffled_share']:.3f}")
+        return out
+    missing = [n for n in names if "radius" not in f["snapshots"][n]]
+    if missing:
+        out["note"] = f"no band profile: snapshot(s) {', '.join(missing[:3])} lack the particle radii"
+        return out
+    try:
+        deps = slab_strain(id_a, x_a, L_a, id_b, x_b, L_b, hkl, K)
+    except ValueError as e:
+        fail(f"{path}: whole test, steps {step_a}-{step_b}: {e}: use fewer --slabs")
+    q, v = strain_invariants(deps)
+    band = band_slabs(q)
+    rows = []
+    for name in names:
+        step, _, x, L = read_snapshot(f, name, path)
+        solid = slab_solid_volumes(x, np.asarray(f["snapshots"][name]["radius"][:], float), L, hkl, K)
+        V = float(np.prod(L))
+        rows.append(dict(step=step, eps_1=float(np.interp(step, series["step"], series["strain"][:, 0])) + 0.0,  # no -0
+                         e_band=void_ratio(band.sum() * V / K, solid[band].sum()),
+                         e_outside=void_ratio((K - band.sum()) * V / K, solid[~band].sum()),
+                         e_whole=void_ratio(V, solid.sum()), e_slab=void_ratio(V / K, solid),
+                         e_series=float(np.interp(step, series["step"], series["e"])) if "e" in series else math.nan,
+                         series_row=bool(np.isin(step, series["step"])), d=mode_geometry(L, hkl)[0]))
+    out.update(rows=rows, deps_q=q, deps_v=v, band=band)
+    return out
+
+
+def write_atomic(path, write):
+    """write(tmp) into a temporary file next to path, then renamed: a reader never sees half a file."""
+    tmp = f"{path}.tmp{os.getpid()}"
+    try:
+        write(tmp)
+        os.replace(tmp, path)
+    finally:
+        if os.path.exists(tmp):
+            os.remove(tmp)
+
+
+def write_text(path, text):
+    def write(tmp):
+        with open(tmp, "w") as f:
+            f.write(text)
+    write_atomic(path, write)
+
+
+def analyse(path, G_opt, whole, K=SLABS):
+    """Rows of statistics and the local deps_q fields of every increment of one results file, and its band profile."""
+    with open_results(path) as f:
+        series = read_series(f, path)
+        names = snapshot_names(f, path, whole)
+        rows, fields = [], []
+        step_a, id_a, x_a, L_a = read_snapshot(f, names[0], path)
+        G = G_opt or default_grid(len(id_a))
+        table = mode_table(G)
+        for name in names[1:]:
+            step_b, id_b, x_b, L_b = read_snapshot(f, name, path)
+            try:
+                deps, matched = local_strain(id_a, x_a, L_a, id_b, x_b, L_b, G)
+            except ValueError as e:
+                fail(f"{path}: steps {step_a}-{step_b}: {e} (G = {G}): use a smaller --grid")
+            stats, q = increment_stats(deps, L_a, L_b, table)
+            eps1 = float(np.interp(0.5 * (step_a + step_b), series["step"], series["strain"][:, 0]))
+            rows.append(dict(step_a=step_a, step_b=step_b, eps1_mid=eps1, **stats))
+            fields.append((q, 0.5 * (L_a + L_b)))
+            r = rows[-1]
+            print(f"{PROG}: {os.path.basename(path)}: steps {step_a}-{step_b}, eps1 {eps1:.4f}: deps_q macro "
+                  f"{r['deps_q_macro']:.3e}, local mean {r['deps_q_mean']:.3e}, CV {r['deps_q_cv']:.3f}, "
+                  f"top-10% {r['top10_share']:.3f}, mode ({r['mode_h']},{r['mode_k']},{r['mode_l']}) "
+                  f"{r['mode_share']:.3f} (shuffled {r['shuffled_share']:.3f}), normal "
+                  f"{r['normal_angle_deg']:.1f} deg to axis 1", flush=True)
+            step_a, id_a, x_a, L_a = step_b, id_b, x_b, L_b
+        band = band_profile(f, path, series, G, K)
+    print(f"{PROG}: {os.path.basename(path)}: {band_line(band)}", flush=True)
+    return dict(rows=rows, fields=fields, series=series, G=G, N=len(id_a), matched=matched, band=band)
+
+
+def band_summary(b):
+    """The band's and the outside's figures of a band profile: e first and last, mean deps_q and deps_v, the
+    volumetric strain of their change of e, -ln((1 + e_last) / (1 + e_first)) (the slabs keep V_cell / K), and the
+    band's share of the summed slab deps_q."""
+    first, last = b["rows"][0], b["rows"][-1]
+    out = {}
+    for key, mask in (("band", b["band"]), ("outside", ~b["band"])):
+        e0, e1 = first[f"e_{key}"], last[f"e_{key}"]
+        out[key] = dict(e0=e0, e1=e1, q=float(b["deps_q"][mask].mean()) if mask.any() else math.nan,
+                        v=float(b["deps_v"][mask].mean()) if mask.any() else math.nan,
+                        v_e=-math.log((1.0 + e1) / (1.0 + e0)) if mask.any() else math.nan)
+    out["share"] = float(b["deps_q"][b["band"]].sum() / b["deps_q"].sum())
+    return out
+
+
+def mode_str(hkl):
+    return "(" + ",".join(str(int(c)) for c in hkl) + ")"
+
+
+def slab_list(mask):
+    return ",".join(str(j) for j in np.flatnonzero(mask))
+
+
+def band_line(b):
+    if b["rows"] is None:
+        return b["note"]
+    s = band_summary(b)
+    return (f"band profile: whole-test mode {mode_str(b['hkl'])} share {b['share']:.3f} (shuffled "
+            f"{b['shuffled']:.3f}), {b['K']} slabs, band slab(s) {slab_list(b['band'])}: e_band "
+            f"{s['band']['e0']:.4f} -> "
+            f"{s['band']['e1']:.4f} ({s['band']['e1'] - s['band']['e0']:+.4f}), e_outside {s['outside']['e0']:.4f} "
+            f"-> {s['outside']['e1']:.4f} ({s['outside']['e1'] - s['outside']['e0']:+.4f}); band share of the "
+            f"slabs' deps_q {s['share']:.3f}")
+
+
+def write_band_csv(path, b):
+    """One row per snapshot: step, eps_1, e of the band's slabs, of the outside, of all slabs, of each slab."""
+    buf = io.StringIO()
+    w = csv.writer(buf, lineterminator="\n")
+    w.writerow(["step", "eps_1", "e_band", "e_outside", "e_whole"] + [f"e_{j}" for j in range(b["K"])])
+    for r in b["rows"]:
+        w.writerow([r["step"]] + [f"{v:.10g}" for v in (r["eps_1"], r["e_band"], r["e_outside"], r["e_whole"])]
+                   + [f"{v:.10g}" for v in r["e_slab"]])
+    write_text(path, buf.getvalue())
+
+
+def write_csv(path, rows):
+    buf = io.StringIO()
+    w = csv.writer(buf, lineterminator="\n")
+    w.writerow(COLUMNS)
+    for r in rows:
+        w.writerow([f"{r[c]:.6g}" if isinstance(r[c], float) else r[c] for c in COLUMNS])
+    write_text(path, buf.getvalue())
+
+
+def write_summary(path, src, res):
+    rows, G = res["rows"], res["G"]
+    best = max(range(len(rows)), key=lambda k: np.nan_to_num(rows[k]["mode_share"], nan=-1.0))
+    b = rows[best]
+    lines = [f"# Strain localization: {os.path.basename(src)}", "",
+             f"{res['N']} particles ({res['matched']} matched by id), {G}^3 bins (~{res['N'] / G ** 3:.0f} "
+             f"particles a bin), {len(rows)} increments.", "",
+             "Uniform field: CV ~ 0 (plus the sampling noise of the bins), top-10 % share 0.10, mode share "
+             "close to the shuffled one. A band: the top-10 % share well above 0.10 and one mode far above "
+             "the shuffled share; the band normal is at the given angle to axis 1.", "",
+             f"Largest mode share: {b['mode_share']:.3f} (shuffled {b['shuffled_share']:.3f}), mode "
+             f"({b['mode_h']},{b['mode_k']},{b['mode_l']}), normal {b['normal_angle_deg']:.1f} deg to axis 1, "
+             f"in steps {b['step_a']}-{b['step_b']} (eps_1 = {b['eps1_mid']:.4f}).", "",
+             "| steps | eps_1 | deps_q macro | deps_q local mean | CV | top-10 % | mode | share | shuffled | "
+             "normal to axis 1 (deg) |", "|---|---|---|---|---|---|---|---|---|---|"]
+    for r in rows:
+        lines.append(f"| {r['step_a']}-{r['step_b']} | {r['eps1_mid']:.4f} | {r['deps_q_macro']:.3e} | "
+                     f"{r['deps_q_mean']:.3e} | {r['deps_q_cv']:.3f} | {r['top10_share']:.3f} | "
+                     f"({r['mode_h']},{r['mode_k']},{r['mode_l']}) | {r['mode_share']:.3f} | "
+                     f"{r['shuffled_share']:.3f} | {r['normal_angle_deg']:.1f} |")
+    write_text(path, "\n".join(lines + [""] + band_section(res["band"])) + "\n")
+    return best
+
+
+def band_section(b):
+    """The summary's "Band profile" section."""
+    lines = ["## Band profile", ""]
+    if b["rows"] is None:
+        return lines + [b["note"][0].upper() + b["note"][1:] + "; the band profile is skipped."]
+    s, rows, K = band_summary(b), b["rows"], b["K"]
+    first, last = rows[0], rows[-1]
+    lines += [f"Mode {mode_str(b['hkl'])} of the whole test (steps {b['steps'][0]}-{b['steps'][1]}): "
+              f"share {b['share']:.3f} against {b['shuffled']:.3f} shuffled, normal {b['angle']:.1f} deg to axis 1. "
+              f"{K} slabs of equal xi across it, each 1/{K} of the cell at every snapshot, "
+              f"{first['d'] / K * 1e3:.2f} -> {last['d'] / K * 1e3:.2f} mm thick (plane spacing d = "
+              f"{first['d'] * 1e3:.2f} -> {last['d'] * 1e3:.2f} mm). Band slab(s): {slab_list(b['band'])} (whole-test "
+              "deps_q above the mean by more than half the way to the largest).", "",
+              "| slab | xi | deps_q | deps_v | e first | e last | change | |", "|---|---|---|---|---|---|---|---|"]
+    for j in range(K):
+        lines.append(f"| {j} | {j / K:.2f}-{(j + 1) / K:.2f} | {b['deps_q'][j]:.4f} | {b['deps_v'][j]:+.4f} | "
+                     f"{first['e_slab'][j]:.4f} | {last['e_slab'][j]:.4f} | "
+                     f"{last['e_slab'][j] - first['e_slab'][j]:+.4f} | {'band' if b['band'][j] else ''} |")
+    lines += ["", "deps_q, deps_v: the whole test's local strain of the slab from the particles' displacement "
+              "(compression positive); e: the void ratio of the slab from its exact solid volume, first and last "
+              f"snapshot (steps {first['step']} and {last['step']}, eps_1 = {first['eps_1']:.4f} and "
+              f"{last['eps_1']:.4f}).", "",
+              "| | slabs | e first | e last | change | mean deps_q | mean deps_v | -ln((1+e last)/(1+e first)) |",
+              "|---|---|---|---|---|---|---|---|"]
+    for key in ("band", "outside"):
+        t = s[key]
+        lines.append(f"| {key} | {slab_list(b['band'] if key == 'band' else ~b['band']) or '-'} | {t['e0']:.4f} | "
+                     f"{t['e1']:.4f} | {t['e1'] - t['e0']:+.4f} | {t['q']:.4f} | {t['v']:+.4f} | {t['v_e']:+.4f} |")
+    diff = [abs(r["e_whole"] - r["e_series"]) for r in rows]
+    exact = all(r["series_row"] for r in rows)
+    lines += ["", f"The band's slabs carry {s['share']:.3f} of the summed slab deps_q ({b['band'].sum()} of {K} "
+              "slabs). The last column is the volumetric strain (compression positive) that the change of e means "
+              "for slabs that keep their share of the cell; it differs from the mean deps_v by the particles "
+              "crossing the slabs' planes and by the central differences' smoothing.", "",
+              f"All slabs together: e {first['e_whole']:.4f} -> {last['e_whole']:.4f}; the series' e (the app's "
+              f"V_cell / V_s - 1) at the same steps{'' if exact else ' (interpolated between its rows)'} differs by "
+              f"{np.nanmax(diff) if not all(map(math.isnan, diff)) else math.nan:.2e} at most."]
+    return lines
+
+
+def int_at_least(low, what):
+    """An argparse type: an integer >= low, else an error saying what the number counts."""
+    def parse(v):
+        try:
+            k = int(v)
+        except ValueError:
+            k = None
+        if k is None or k < low:
+            raise argparse.ArgumentTypeError(f"must be an integer >= {low} ({what}), got {v!r}")
+        return k
+    return parse
+
+
+grid_arg = int_at_least(3, "bins along each cell edge")
+
+
+slabs_arg = int_at_least(4, "slabs across the band's period")
+
+
+def main():
+    ap = argparse.ArgumentParser(prog=PROG, description=__doc__.split("\n\n")[0],
+                                 formatter_class=argparse.RawDescriptionHelpFormatter,
+                                 epilog="\n\n".join(__doc__.split("\n\n")[2:]))
+    ap.add_argument("results", nargs="+", help="shearing results files (<test>.h5) with >= 2 snapshots")
+    ap.add_argument("--out", default=None, help="output folder (default: next to each input)")
+    ap.add_argument("--grid", type=grid_arg, default=None,
+                    help="bins along each cell edge, >= 3 (default: ~40 particles a bin)")
+    ap.add_argument("--whole", action="store_true",
+                    help="one increment, from the first snapshot to the last (the whole test)")
+    ap.add_argument("--slabs", type=slabs_arg, default=SLABS,
+                    help=f"slabs across the band's period for its profile, >= 4 (default {SLABS})")
+    args = ap.parse_args()
+    try:
+        return run(args)
+    except InputError as e:  # the reader's one-line error (results.py): exit 2
+        fail(str(e))
+
+
+def run(args):
+    """The command's work once its arguments are parsed (main)."""
+    try:
+        import h5py  # noqa: F401 (checked here: used where the files are read and drawn)
+        import matplotlib  # noqa: F401
+    except ImportError as e:
+        fail(f"needs python3 with numpy, matplotlib and h5py ({e})", 1)
+    from . import plots
+    outputs = {}
+    for src in args.results:
+        if not os.path.isfile(src):
+            fail(f"{src}: no such file")
+        stem = os.path.splitext(os.path.basename(src))[0] + "-localization"
+        prefix = os.path.join(args.out or os.path.dirname(os.path.abspath(src)), stem)
+        if prefix in outputs.values():
+            fail(f"{src}: its outputs {prefix}.* would overwrite another input's: give the files one at a time "
+                 "with different --out folders")
+        outputs[src] = prefix
+        with open_results(src) as f:  # every input checked before anything is written
+            read_series(f, src)
+            snapshot_names(f, src)
+    if args.out:
+        try:
+            os.makedirs(args.out, exist_ok=True)
+        except OSError as e:
+            fail(f"--out {args.out}: cannot create the folder ({e.strerror})")
+    for src, prefix in outputs.items():
+        res = analyse(src, args.grid, args.whole, args.slabs)
+        write_csv(prefix + ".csv", res["rows"])
+        if res["band"]["rows"] is not None:
+            write_band_csv(prefix + "-band.csv", res["band"])
+        elif os.path.exists(prefix + "-band.csv"):
+            os.remove(prefix + "-band.csv")  # an earlier run's profile: this one found no band
+        best = write_summary(prefix + ".md", src, res)
+        plots.localization_figure(prefix + ".png", src, res, best)
+        print(f"{PROG}: wrote {prefix}.md (+ csv, {'band csv, ' if res['band']['rows'] is not None else ''}png)")
+    return 0

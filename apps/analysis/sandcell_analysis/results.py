@@ -1,0 +1,237 @@
+"""Reading sandcell results: the one reader of the results files (<test>.h5, written by `triaxial`)
+and of a run folder's index.csv and samples.csv, used by every part of the analysis.
+
+HDF5 file locking is switched off on import, so that the files of a running job can be read; the
+datasets of /series are then cut to their common length.
+"""
+import os
+
+os.environ["HDF5_USE_FILE_LOCKING"] = "FALSE"  # read files a running job is still writing
+
+import csv  # noqa: E402
+import math  # noqa: E402
+
+import numpy as np  # noqa: E402
+
+from .m_theta import lode_from_b  # noqa: E402
+
+NAN = float("nan")
+PATHS = ("constant_p", "constant_sigma3", "strain")  # the loading paths, in the order of the tables
+
+
+class InputError(Exception):
+    """Bad input: reported as one line, exit status 2."""
+
+
+def open_results(path):
+    """The results file, open for reading (h5py.File); InputError "cannot read PATH: why" if it is not
+    one."""
+    import h5py
+    try:
+        return h5py.File(path, "r")
+    except Exception as exc:  # h5py raises OSError, sometimes others, for non-HDF5 files
+        why = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+        raise InputError(f"cannot read {path}: {why}") from None
+
+
+def read_columns(path, names, optional=()):
+    """Float arrays of the /series datasets `names` (required) and `optional` (left out when absent),
+    cut to their common length (a running job's datasets may differ by a row); a 2-D dataset keeps
+    its columns. InputError naming the file and what is missing."""
+    with open_results(path) as f:
+        if "series" not in f:
+            raise InputError(f"cannot read {path}: no /series group")
+        s = f["series"]
+        missing = [k for k in names if k not in s]
+        if missing:
+            raise InputError(f"cannot read {path}: /series lacks {', '.join(missing)}")
+        cols = {k: np.asarray(s[k][...], float) for k in (*names, *optional) if k in s}
+    n = min(v.shape[0] for v in cols.values())
+    return {k: v[:n] for k, v in cols.items()}
+
+
+def read_job(path):
+    """The root attribute `job` of a results file (its test name), '' if absent."""
+    with open_results(path) as f:
+        title = attr(f, "job")
+    return "" if title is None else str(title)
+
+
+def read_csv_rows(path):
+    """The rows of a CSV file with a header (index.csv, samples.csv) as dicts of strings; [] when the
+    file does not exist."""
+    if not os.path.exists(path):
+        return []
+    with open(path, newline="") as fh:
+        return list(csv.DictReader(fh))
+
+
+def read_index(folder):
+    """The rows of a run folder's index.csv (one per test: test, status, file, steps, ...)."""
+    return read_csv_rows(os.path.join(folder, "index.csv"))
+
+
+def read_samples(folder):
+    """The rows of a run folder's samples.csv (one per prepared sample: steps, wall_s, ...)."""
+    return read_csv_rows(os.path.join(folder, "samples.csv"))
+
+
+def attr(f, key):
+    v = f.attrs.get(key)
+    if v is None:
+        return None
+    if isinstance(v, np.ndarray):
+        v = v.item() if v.size == 1 else v.tolist()
+    if isinstance(v, bytes):
+        v = v.decode("utf-8", "replace")
+    return v
+
+
+def to_float(v, default=NAN):
+    try:
+        return float(v)
+    except (TypeError, ValueError):
+        return default
+
+
+def collect_files(inputs):
+    """The .h5 files named or found in the input directories (sample and checkpoint files out).
+
+    Returns a list of (path, named): named is False for a file found in a directory."""
+    files, seen = [], set()
+    for item in inputs:
+        if os.path.isdir(item):
+            for name in sorted(os.listdir(item)):
+                if (not name.endswith(".h5") or name.startswith("sample-")
+                        or name.endswith(".checkpoint.h5")):
+                    continue
+                path = os.path.join(item, name)
+                if os.path.isfile(path) and os.path.realpath(path) not in seen:
+                    seen.add(os.path.realpath(path))
+                    files.append((path, False))
+        elif os.path.isfile(item):
+            if os.path.realpath(item) not in seen:
+                seen.add(os.path.realpath(item))
+                files.append((item, True))
+        else:
+            raise InputError(f"no such file or directory: {item}")
+    if not files:
+        raise InputError("no results files (*.h5) in " + ", ".join(inputs))
+    return files
+
+
+def read_test(path):
+    """Read a results file. Returns (test dict, None) or (None, why it is not a shear test)."""
+    f = open_results(path)
+    try:
+        with f:
+            stage = attr(f, "stage")
+            if stage != "shear":
+                return None, f"stage {stage!r}" if stage else "no 'stage' attribute"
+            if "series" not in f:
+                raise InputError(f"cannot read {path}: no /series group")
+            s = f["series"]
+
+            def get(name):
+                return np.asarray(s[name][...], float) if name in s else None
+
+            strain = get("strain")
+            cols = {"p": get("p"), "q": get("q"), "e": get("e"), "eps_v": get("eps_v")}
+            missing = [k for k, v in (("strain", strain), *cols.items()) if v is None]
+            if missing:
+                raise InputError(f"cannot read {path}: /series lacks {', '.join(missing)}")
+            if strain.ndim != 2 or strain.shape[1] < 3:
+                raise InputError(f"cannot read {path}: /series/strain is not [n, 3]")
+            for name in ("eta", "theta", "b", "eps_q", "time", "stress"):
+                cols[name] = get(name)
+            ps = get("principal_stress")
+            attrs = {k: attr(f, k) for k in ("job", "path", "b", "p0")}
+    except InputError:
+        raise
+    except Exception as exc:
+        why = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+        raise InputError(f"cannot read {path}: {why}") from None
+    if cols["stress"] is not None and (cols["stress"].ndim != 2 or cols["stress"].shape[1] != 6):
+        cols["stress"] = None
+    lengths = [strain.shape[0]] + [v.shape[0] for v in cols.values() if v is not None]
+    if ps is not None and ps.ndim == 2 and ps.shape[1] == 3:
+        lengths.append(ps.shape[0])
+    else:
+        ps = None
+    n = min(lengths)
+    strain = strain[:n, :3]
+    cols = {k: (v[:n] if v is not None else None) for k, v in cols.items()}
+    if cols["eta"] is None:
+        with np.errstate(divide="ignore", invalid="ignore"):
+            cols["eta"] = cols["q"] / cols["p"]
+    if cols["eps_q"] is None:
+        a, b_, c = strain[:, 0], strain[:, 1], strain[:, 2]
+        cols["eps_q"] = math.sqrt(2) / 3 * np.sqrt((a - b_) ** 2 + (b_ - c) ** 2 + (c - a) ** 2)
+    if ps is not None:
+        ps = np.sort(ps[:n], axis=1)[:, ::-1]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            if cols["b"] is None:
+                cols["b"] = (ps[:, 1] - ps[:, 2]) / (ps[:, 0] - ps[:, 2])
+            if cols["theta"] is None:
+                cols["theta"] = lode_from_b(cols["b"])
+    for k in ("b", "theta"):
+        if cols[k] is None:
+            cols[k] = np.full(n, NAN)
+    eps1 = strain[:, 0]
+    good = np.isfinite(eps1)
+    for k in ("p", "q", "e", "eps_v", "eps_q"):
+        good &= np.isfinite(cols[k])
+    test = {k: v[good] for k, v in cols.items() if v is not None}
+    test["eps1"] = eps1[good]
+    test["strain"] = strain[good]
+    name = attrs["job"] or os.path.splitext(os.path.basename(path))[0]
+    path_kind = attrs["path"] or "unknown"
+    test.update(file=path, name=str(name), path=str(path_kind), rows=int(np.sum(good)),
+                b_nominal=to_float(attrs["b"]), p0=to_float(attrs["p0"]))
+    if path_kind == "strain":
+        test["b_nominal"] = NAN  # b is not controlled on a strain path
+    if not np.isfinite(test["p0"]) and test["rows"]:
+        test["p0"] = float(test["p"][0])
+    return test, None
+
+
+def b_key(t):
+    return round(t["b_nominal"], 3) if np.isfinite(t["b_nominal"]) else NAN
+
+
+def read_series(f, path):
+    """/series/step, strain, eta and e (those present) of an open results file, cut to their common length."""
+    if "series" not in f or "step" not in f["series"] or "strain" not in f["series"]:
+        raise InputError(f"{path}: no /series/step and /series/strain: not a triaxial results file")
+    s = f["series"]
+    names = [k for k in ("step", "strain", "eta", "e") if k in s]
+    n = min(s[k].shape[0] for k in names)  # a running job's datasets may differ by a row
+    return {k: np.asarray(s[k][:n], float) for k in names}
+
+
+def snapshot_names(f, path, whole=False):
+    """The particle snapshots of an open results file, in step order (with whole: the first and the last)."""
+    names = sorted(f["snapshots"].keys(), key=int) if "snapshots" in f else []
+    if len(names) < 2:
+        raise InputError(f"{path}: {len(names)} particle snapshot(s); localization needs at least 2: set "
+                         "output.snapshot_interval (steps between snapshots, e.g. 1 % of axial strain) and run the "
+                         "test again")
+    # The stage's end is written as well as the interval's snapshots: a few steps after the last
+    # of them, it would make an increment of noise. It then replaces that last one.
+    if whole:
+        return [names[0], names[-1]]
+    if len(names) >= 3:
+        gaps = np.diff([int(k) for k in names])
+        if gaps[-1] < 0.5 * np.median(gaps[:-1]):
+            del names[-2]
+    return names
+
+
+def read_snapshot(f, name, path):
+    """(step, ids, positions [n, 3], cell lengths [3]) of one particle snapshot."""
+    g = f["snapshots"][name]
+    missing = [k for k in ("id", "position") if k not in g] + ([] if "cell_length" in g.attrs else ["cell_length"])
+    if missing:
+        raise InputError(f"{path}: snapshot {name} lacks {', '.join(missing)}")
+    return int(g.attrs.get("step", int(name))), g["id"][:], np.asarray(g["position"][:], float), \
+        np.asarray(g.attrs["cell_length"], float)

@@ -1,0 +1,74 @@
+// The app's critical-state test (apps/triaxial/critical.cpp) on series read from a CSV file, for
+// test_critical_twin.py, which runs the Python test (sandcell_analysis.critical) on the same series
+// and asserts that the two agree.
+//
+//     critical_twin SERIES.csv
+//
+// SERIES.csv: a header, then rows `series,eps1,p,q,e` (series: an integer id; the rows of a series
+// consecutive, eps1 increasing). Prints one line per series:
+//     series reached rows change_eta change_p change_e first_row
+// for the test on the whole series with the app's defaults (CriticalTest{}), and first_row: the
+// rows n of the first prefix [0, n) the test accepts, as the app applies it after every series row
+// with shear.stop_at_critical (0: none). Exit 2 with one line on bad input.
+#include "critical.hpp"
+
+#include <cstdio>
+#include <fstream>
+#include <map>
+#include <sstream>
+#include <string>
+#include <vector>
+
+namespace {
+
+struct Series {
+  std::vector<double> eps1, p, q, e;
+};
+
+int fail(const std::string& msg) {
+  std::fprintf(stderr, "critical_twin: %s\n", msg.c_str());
+  return 2;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  using sandcell::triaxial::check_critical;
+  using sandcell::triaxial::CriticalTest;
+  if (argc != 2) return fail("usage: critical_twin SERIES.csv");
+  std::ifstream in(argv[1]);
+  if (!in) return fail(std::string("cannot read SERIES.csv: ") + argv[1]);
+  std::map<long, Series> all;
+  std::string line;
+  std::getline(in, line);  // header
+  for (std::size_t row = 2; std::getline(in, line); ++row) {
+    if (line.empty()) continue;
+    std::istringstream s(line);
+    long id = 0;
+    double v[4];
+    char comma = 0;
+    s >> id;
+    for (double& x : v) {
+      s >> comma >> x;
+      if (comma != ',') break;
+    }
+    if (!s || comma != ',') return fail(std::string(argv[1]) + ": row " + std::to_string(row) + " is not 'series,eps1,p,q,e'");
+    Series& t = all[id];
+    t.eps1.push_back(v[0]);
+    t.p.push_back(v[1]);
+    t.q.push_back(v[2]);
+    t.e.push_back(v[3]);
+  }
+  const CriticalTest test{};
+  for (const auto& [id, t] : all) {
+    const auto c = check_critical(t.eps1, t.p, t.q, t.e, test);
+    std::size_t first = 0;
+    for (std::size_t n = 1; n <= t.eps1.size() && first == 0; ++n) {
+      const auto head = [&](const std::vector<double>& v) { return std::span<const double>(v.data(), n); };
+      if (check_critical(head(t.eps1), head(t.p), head(t.q), head(t.e), test).reached) first = n;
+    }
+    std::printf("%ld %d %zu %.17g %.17g %.17g %zu\n", id, c.reached ? 1 : 0, c.rows, c.change_eta, c.change_p,
+                c.change_e, first);
+  }
+  return 0;
+}

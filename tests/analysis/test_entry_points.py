@@ -1,0 +1,85 @@
+"""The four scripts (apps/triaxial/*.py) are thin entry points that find the package sandcell_analysis
+beside them (installed: <prefix>/share/sandcell) or in ../analysis (source tree), and nowhere else.
+With $SANDCELL_BUILD_DIR (set by ctest, analysis.entry_points), the real install: `cmake --install`
+into a temporary prefix, then `<prefix>/bin/triaxial analyze` on synthetic results."""
+import os
+import shutil
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from helpers import SCRIPTS, caricature, write_results
+
+ENTRY = ("analyze.py", "study.py", "localization.py", "plot_triaxial.py")
+PACKAGE = os.path.join(SCRIPTS, "..", "analysis", "sandcell_analysis")
+# No PYTHONPATH: a script must find the package by itself.
+ENV = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}
+
+
+def run(*args, cwd=None):
+    return subprocess.run([sys.executable, *args], capture_output=True, text=True, timeout=300, env=ENV, cwd=cwd)
+
+
+def shear_file(folder, name="p-b0.00-p0_500kPa", b=0.0):
+    path = os.path.join(folder, name + ".h5")
+    write_results(path, caricature(0.5e6, b, rng=np.random.default_rng(1)),
+                  {"job": name.encode(), "stage": b"shear", "path": b"constant_p", "b": str(b).encode(),
+                   "p0": "500000"})
+    return path
+
+
+def test_source_tree_scripts(tmp_path):
+    for script in ENTRY[:3]:
+        r = run(os.path.join(SCRIPTS, script), "--help", cwd=str(tmp_path))
+        assert r.returncode == 0 and "usage" in r.stdout, (script, r.stderr)
+    h5 = shear_file(str(tmp_path))
+    png = str(tmp_path / "plot.png")
+    r = run(os.path.join(SCRIPTS, "plot_triaxial.py"), h5, png, cwd=str(tmp_path))
+    assert r.returncode == 0 and os.path.getsize(png) > 1000, r.stderr
+    r = run(os.path.join(SCRIPTS, "plot_triaxial.py"), h5)  # wrong arguments: the usage, exit 2
+    assert r.returncode == 2 and "plot_triaxial.py RESULTS.h5 OUT.png" in r.stderr
+
+
+def test_installed_layout_uses_the_package_beside_the_scripts(tmp_path):
+    share = tmp_path / "share" / "sandcell"
+    share.mkdir(parents=True)
+    for script in ENTRY:
+        shutil.copy(os.path.join(SCRIPTS, script), share)
+    shutil.copytree(PACKAGE, share / "sandcell_analysis", ignore=shutil.ignore_patterns("__pycache__"))
+    run_dir = tmp_path / "run"
+    run_dir.mkdir()
+    for b in (0.0, 0.5, 1.0):
+        shear_file(str(run_dir), f"p-b{b:.2f}-p0_500kPa", b)
+    r = run(str(share / "analyze.py"), str(run_dir), "--out", str(tmp_path / "out"), cwd=str(tmp_path))
+    assert r.returncode == 0, r.stderr
+    assert os.path.getsize(tmp_path / "out" / "report.md") > 1000
+    # Without the package beside them (and no source tree above), the scripts say so in one line.
+    shutil.rmtree(share / "sandcell_analysis")
+    r = run(str(share / "analyze.py"), str(run_dir), cwd=str(tmp_path))
+    assert r.returncode == 1 and r.stderr.count("\n") == 1 and "sandcell_analysis" in r.stderr, r.stderr
+
+
+@pytest.mark.skipif(not os.environ.get("SANDCELL_BUILD_DIR"), reason="needs $SANDCELL_BUILD_DIR (ctest)")
+def test_cmake_install_then_triaxial_analyze(tmp_path):
+    prefix = tmp_path / "prefix"
+    r = subprocess.run(["cmake", "--install", os.environ["SANDCELL_BUILD_DIR"], "--prefix", str(prefix)],
+                       capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0, r.stderr
+    share = prefix / "share" / "sandcell"
+    for script in ENTRY:
+        assert (share / script).is_file(), script
+    assert (share / "sandcell_analysis" / "analyze.py").is_file()
+    assert not (share / "sandcell_analysis" / "__pycache__").exists()
+    run_dir = tmp_path / "run"
+    run_dir.mkdir()
+    for b in (0.0, 0.5, 1.0):
+        shear_file(str(run_dir), f"p-b{b:.2f}-p0_500kPa", b)
+    r = subprocess.run([str(prefix / "bin" / "triaxial"), "analyze", str(run_dir), "--out", str(tmp_path / "out")],
+                       capture_output=True, text=True, timeout=300, env=ENV)
+    assert r.returncode == 0, r.stderr
+    assert os.path.getsize(tmp_path / "out" / "report.md") > 1000
+    r = subprocess.run([str(prefix / "bin" / "triaxial"), "analyze", str(tmp_path / "out" / "report.md")],
+                       capture_output=True, text=True, timeout=60, env=ENV)
+    assert r.returncode == 2 and r.stderr.count("\n") == 1 and "cannot read" in r.stderr, r.stderr
