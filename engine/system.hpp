@@ -26,12 +26,17 @@
 #include <functional>
 #include <string>
 #include <string_view>
+#include <utility>
 
 namespace sandcell {
 
 using SystemRun = std::function<void(const Model&, State&, Scratch&, Executor&)>;
 
 struct SystemSpec {
+  SystemSpec() = default;
+  SystemSpec(std::string name_, ComponentMask reads_, ComponentMask writes_, SystemRun run_)
+      : name(std::move(name_)), reads(reads_), writes(writes_), run(std::move(run_)) {}
+
   std::string name;
   ComponentMask reads = 0;
   ComponentMask writes = 0;
@@ -46,7 +51,7 @@ struct SystemSpec {
 
 template <class S>
 SystemSpec make_system() {
-  SystemSpec spec{std::string(S::name), S::reads, S::writes, &S::run, {}, {}, {}, {}, {}};
+  SystemSpec spec(std::string(S::name), S::reads, S::writes, &S::run);
   if constexpr (requires { &S::prepare; }) spec.prepare = &S::prepare;
   if constexpr (requires { &S::setup; }) spec.setup = &S::setup;
   if constexpr (requires { &S::restore; }) spec.restore = &S::restore;

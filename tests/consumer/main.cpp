@@ -1,8 +1,7 @@
 // Builds a two-sphere scene through the installed headers and steps it: v = 1 m/s for 1000 steps
 // of 1e-4 s moves the sphere 0.1 m.
-#include <engine/checkpoint.hpp>
-#include <engine/world.hpp>
-#include <systems/catalogue.hpp>
+#include <sandcell/io.hpp>
+#include <sandcell/world.hpp>
 
 #include <cmath>
 #include <cstdio>

@@ -1,0 +1,3 @@
+#pragma once
+// sandcell's public API for making samples: sphere clouds from a gradation.
+#include "engine/generate.hpp"
