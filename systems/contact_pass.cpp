@@ -128,9 +128,11 @@ void contact_loop(const Model& model, State& state, Scratch& scratch, Executor& 
   const PairMaterial* const pair_mat = model.pairs.data();
   const double dt = model.dt;
   const double v_char = characteristic_velocity(model.contact);
-  exec.parallel_for(m, k_contact_grain, [=](std::size_t b, std::size_t e) {
+  exec.parallel_for(m, k_contact_grain, [=](std::size_t b, std::size_t e) __attribute__((flatten)) {
     // The pointers are copied by value into the closure: the pass needs more of them than there
     // are registers, and a spilled copy reloads with one load instead of two through a reference.
+    // `flatten` inlines the laws' small Eigen operations into the loop: left to GCC's heuristics,
+    // composing the laws as types kept one of them out of line, +7.7 % instructions (callgrind).
     Block blk;
     for (std::size_t k0 = b; k0 < e; k0 += k_block) {
       const std::size_t nb = std::min(k_block, e - k0);
