@@ -73,62 +73,33 @@ void for_each_neighbor(const Bins& bins, const std::array<int, 3>& b, const std:
       }
 }
 
-}  // namespace
-
-void build_neighbor_list(const Model& model, State& state, Scratch& scratch, Executor& exec) {
-  const auto& id = state.read<Component::particle_id>();
-  auto& position = state.write<Component::particle_position>();
-  const auto& x = position;
-  const auto& radius = state.read<Component::particle_radius>();
-  const Cell& cell = state.read<Component::cell>();
-  ContactPairs& pairs = state.write<Component::contact_pairs>();
-  // The per-contact histories the scene allocates, from the field registry: carried by key.
-  std::array<std::vector<Vec3>*, std::size(k_contact_history_components)> history{};
-  std::size_t n_history = 0;
-  for_each_contact_history(state.contacts, [&](const FieldInfo& field, std::vector<Vec3>& values) {
-    check_access(field.component, true);
-    history[n_history++] = &values;
-  });
-  auto& reference = state.write<Component::particle_reference>();
-  GatherIndex& gather = scratch.write<GatherIndex>();
-  BroadphaseScratch& bp = scratch.own<BroadphaseScratch>();
-
-  const std::size_t n = x.size();
-  const double skin = model.contact.skin;
+// Why a list cannot be built: a non-finite position or cell, or a cell too narrow for the cutoff
+// (a sphere would meet its own image); empty when it can.
+std::string unbuildable(const std::vector<ParticleId>& id, const std::vector<Vec3>& x, const Vec3& length,
+                        double r_max, double skin) {
   // A run gone unstable shows here first as a non-finite position (the rebuild test sends every
   // such step to a build): stop with the particle rather than bin NaNs.
-  for (std::size_t k = 0; k < n; ++k)
-    if (!x[k].allFinite()) {
-      scratch.error = not_finite_message(id[k], x[k]);
-      return;
-    }
-
-  if (!cell.length.allFinite()) {
-    scratch.error = "cell lengths (" + std::to_string(cell.length[0]) + ", " + std::to_string(cell.length[1]) + ", " +
-               std::to_string(cell.length[2]) + ") m are not finite: the servo went unstable (a stress that is not "
-               "finite, or a gain too high for the time step)";
-    return;
-  }
-  const double r_max = n == 0 ? 0.0 : *std::max_element(radius.begin(), radius.end());
+  for (std::size_t k = 0; k < x.size(); ++k)
+    if (!x[k].allFinite()) return not_finite_message(id[k], x[k]);
+  if (!length.allFinite())
+    return "cell lengths (" + std::to_string(length[0]) + ", " + std::to_string(length[1]) + ", " +
+           std::to_string(length[2]) + ") m are not finite: the servo went unstable (a stress that is not "
+           "finite, or a gain too high for the time step)";
   const double cutoff = 2.0 * r_max + skin;
-  const Vec3 length = cell.length;
   if (!(length.minCoeff() > cutoff)) {
     int axis = 0;
     length.minCoeff(&axis);
-    scratch.error = "cell width L" + std::to_string(axis + 1) + " = " + std::to_string(length[axis]) +
-               " m is not larger than 2 r_max + skin = " + std::to_string(cutoff) +
-               " m (r_max = " + std::to_string(r_max) + " m, skin = " + std::to_string(skin) +
-               " m): a sphere would meet its own periodic image";
-    return;
+    return "cell width L" + std::to_string(axis + 1) + " = " + std::to_string(length[axis]) +
+           " m is not larger than 2 r_max + skin = " + std::to_string(cutoff) + " m (r_max = " + std::to_string(r_max) +
+           " m, skin = " + std::to_string(skin) + " m): a sphere would meet its own periodic image";
   }
+  return {};
+}
 
-  // Positions into the cell: between builds they drift continuously (the images stored with the
-  // pairs depend on it); a new list is made from wrapped positions. The shifts are kept: a pair
-  // whose sphere was wrapped keeps its contact under another image (old image - s_i + s_j).
-  bp.shift.resize(n);
-  wrap_positions(position.data(), length, 0, n, bp.shift.data());
-
-  // Bin the particles (counting sort, stable in particle index: deterministic).
+// Bins the particles (counting sort, stable in particle index: deterministic): bins of width at
+// least `cutoff` in reduced coordinates, their CSR in bp.bin_start / bp.bin_particle.
+Bins bin_particles(const std::vector<Vec3>& x, const Vec3& length, double cutoff, BroadphaseScratch& bp) {
+  const std::size_t n = x.size();
   Bins bins;
   int n_bins = 1;
   for (int a = 0; a < 3; ++a) {
@@ -144,14 +115,25 @@ void build_neighbor_list(const Model& model, State& state, Scratch& scratch, Exe
     ++bp.bin_start[bp.particle_bin[k] + 1];
   }
   std::partial_sum(bp.bin_start.begin(), bp.bin_start.end(), bp.bin_start.begin());
-  {
-    std::vector<std::uint32_t>& fill = bp.count;  // reused as a cursor here
-    fill.assign(bp.bin_start.begin(), bp.bin_start.end() - 1);
-    for (std::size_t k = 0; k < n; ++k) bp.bin_particle[fill[bp.particle_bin[k]]++] = static_cast<std::uint32_t>(k);
-  }
+  std::vector<std::uint32_t>& fill = bp.count;  // reused as a cursor here
+  fill.assign(bp.bin_start.begin(), bp.bin_start.end() - 1);
+  for (std::size_t k = 0; k < n; ++k) bp.bin_particle[fill[bp.particle_bin[k]]++] = static_cast<std::uint32_t>(k);
+  return bins;
+}
 
-  // Candidate test: within r_i + r_j + skin of i, counted once from the smaller id.
-  const auto visit = [&](std::size_t i, auto&& emit) {
+// The candidates of particle i: every (j, image) within r_i + r_j + skin, counted once, from the
+// particle with the smaller id.
+struct Candidates {
+  const Bins& bins;
+  const BroadphaseScratch& bp;
+  const std::vector<Vec3>& x;
+  const std::vector<double>& radius;
+  const std::vector<ParticleId>& id;
+  Vec3 length;
+  double skin;
+
+  template <class Emit>
+  void operator()(std::size_t i, Emit&& emit) const {
     const std::array<int, 3> b = bins.of(x[i]);
     const Vec3 xi = x[i];
     const double ri = radius[i] + skin;
@@ -162,9 +144,12 @@ void build_neighbor_list(const Model& model, State& state, Scratch& scratch, Exe
       const double cut = ri + radius[j];
       if (r.squaredNorm() < cut * cut) emit(j, img);
     });
-  };
+  }
+};
 
-  // Pass 1: count per particle; prefix sum gives each particle's slot range.
+// Pass 1: candidates per particle into bp.count, their prefix sum into bp.start (each particle's
+// slot range). Returns the number of pairs.
+std::size_t count_pairs(const Candidates& visit, std::size_t n, BroadphaseScratch& bp, Executor& exec) {
   bp.count.assign(n, 0);
   exec.parallel_for(n, 256, [&](std::size_t b, std::size_t e) {
     for (std::size_t i = b; i < e; ++i) {
@@ -176,10 +161,13 @@ void build_neighbor_list(const Model& model, State& state, Scratch& scratch, Exe
   bp.start.resize(n + 1);
   bp.start[0] = 0;
   for (std::size_t i = 0; i < n; ++i) bp.start[i + 1] = bp.start[i] + bp.count[i];
-  const std::size_t m = bp.start[n];
+  return bp.start[n];
+}
 
-  // Old pairs grouped by particle i (a stable counting sort: the old list is sorted by i unless
-  // the particle arrays were reordered since, which remapped its indices).
+// The old list's pairs grouped by particle i into bp.old_start / bp.old_order (a stable counting
+// sort: the old list is sorted by i unless the particle arrays were reordered since, which
+// remapped its indices).
+void group_old_pairs(const ContactPairs& pairs, std::size_t n, BroadphaseScratch& bp) {
   const std::size_t m_old = pairs.size();
   bp.old_start.assign(n + 1, 0);
   for (std::size_t k = 0; k < m_old; ++k) ++bp.old_start[pairs.i[k] + 1];
@@ -187,8 +175,15 @@ void build_neighbor_list(const Model& model, State& state, Scratch& scratch, Exe
   bp.old_order.resize(m_old);
   bp.count.assign(bp.old_start.begin(), bp.old_start.end() - 1);
   for (std::size_t k = 0; k < m_old; ++k) bp.old_order[bp.count[pairs.i[k]]++] = static_cast<std::uint32_t>(k);
+}
 
-  // Pass 2: fill each particle's slots, sort them canonically, carry history by key.
+// Pass 2: fills each particle's slots of the new list (bp.next_pairs, bp.next_history), sorts them
+// canonically by (id_j, image) and carries each pair's histories from the old list by key.
+void fill_pairs(const Candidates& visit, std::size_t m, const ContactPairs& pairs,
+                const std::array<std::vector<Vec3>*, std::size(k_contact_history_components)>& history,
+                std::size_t n_history, BroadphaseScratch& bp, Executor& exec) {
+  const std::size_t n = visit.x.size();
+  const std::vector<ParticleId>& id = visit.id;
   ContactPairs& next = bp.next_pairs;
   next.id_i.resize(m);
   next.id_j.resize(m);
@@ -236,6 +231,51 @@ void build_neighbor_list(const Model& model, State& state, Scratch& scratch, Exe
       }
     }
   });
+}
+
+}  // namespace
+
+void build_neighbor_list(const Model& model, State& state, Scratch& scratch, Executor& exec) {
+  const auto& id = state.read<Component::particle_id>();
+  auto& position = state.write<Component::particle_position>();
+  const auto& x = position;
+  const auto& radius = state.read<Component::particle_radius>();
+  const Cell& cell = state.read<Component::cell>();
+  ContactPairs& pairs = state.write<Component::contact_pairs>();
+  // The per-contact histories the scene allocates, from the field registry: carried by key.
+  std::array<std::vector<Vec3>*, std::size(k_contact_history_components)> history{};
+  std::size_t n_history = 0;
+  for_each_contact_history(state.contacts, [&](const FieldInfo& field, std::vector<Vec3>& values) {
+    check_access(field.component, true);
+    history[n_history++] = &values;
+  });
+  auto& reference = state.write<Component::particle_reference>();
+  GatherIndex& gather = scratch.write<GatherIndex>();
+  BroadphaseScratch& bp = scratch.own<BroadphaseScratch>();
+
+  const std::size_t n = x.size();
+  const double skin = model.contact.skin;
+  const double r_max = n == 0 ? 0.0 : *std::max_element(radius.begin(), radius.end());
+  const Vec3 length = cell.length;
+  if (std::string why = unbuildable(id, x, length, r_max, skin); !why.empty()) {
+    scratch.error = std::move(why);
+    return;
+  }
+  const double cutoff = 2.0 * r_max + skin;
+
+  // Positions into the cell: between builds they drift continuously (the images stored with the
+  // pairs depend on it); a new list is made from wrapped positions. The shifts are kept: a pair
+  // whose sphere was wrapped keeps its contact under another image (old image - s_i + s_j).
+  bp.shift.resize(n);
+  wrap_positions(position.data(), length, 0, n, bp.shift.data());
+
+  const Bins bins = bin_particles(x, length, cutoff, bp);
+  const Candidates visit{bins, bp, x, radius, id, length, skin};
+  const std::size_t m = count_pairs(visit, n, bp, exec);
+  group_old_pairs(pairs, n, bp);
+  fill_pairs(visit, m, pairs, history, n_history, bp, exec);
+
+  ContactPairs& next = bp.next_pairs;
   std::swap(pairs.id_i, next.id_i);
   std::swap(pairs.id_j, next.id_j);
   std::swap(pairs.image, next.image);
@@ -246,8 +286,7 @@ void build_neighbor_list(const Model& model, State& state, Scratch& scratch, Exe
   reference.assign(x.begin(), x.end());
 
   rebuild_gather_index(pairs, n, gather);
-  rebuild_pair_constants(pairs, radius, state.read<Component::particle_mass>(),
-                         scratch.write<PairConstants>());
+  rebuild_pair_constants(pairs, radius, state.read<Component::particle_mass>(), scratch.write<PairConstants>());
   bp.cutoff = cutoff;
   bp.r_min = n == 0 ? 0.0 : *std::min_element(radius.begin(), radius.end());
   ++bp.builds;

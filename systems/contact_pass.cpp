@@ -60,14 +60,54 @@ struct alignas(64) Block {
   double gamma_n[k_block];                       // kg/s
 };
 
-template <class Normal, class Tangential, RollingModel Roll, bool Affine, bool Update>
-void contact_loop(const Model& model, State& state, Scratch& scratch, Executor& exec) {
+// Everything the pass reads and writes, bound once per pass and copied by value into each chunk:
+// the pass needs more of these than there are registers, and a spilled copy reloads with one load
+// instead of two through a reference.
+struct PassData {
+  const std::uint32_t* __restrict pi;
+  const std::uint32_t* __restrict pj;
+  const Vec3* __restrict x;
+  const Vec3* __restrict v;
+  const Vec3* __restrict w;
+  const double* __restrict mass;
+  const std::uint32_t* __restrict material;
+  const double* __restrict r_star;
+  const double* __restrict m_star;
+  const double* __restrict r_i;
+  const double* __restrict r_j;
+  const std::uint8_t* __restrict image_code;
+  const PairMaterial* pair_mat;
+  std::size_t n_mat;
+  Vec3* __restrict force;
+  Vec3* __restrict torque_i;
+  Vec3* __restrict torque_j;
+  Vec3* __restrict hist_t;
+  Vec3* __restrict hist_r;
+  std::uint8_t* __restrict regime;
+  std::uint8_t* __restrict order;
+  std::uint8_t* __restrict stale;
+  std::uint8_t* __restrict sorted;
+  std::array<Vec3, 27> shift;  // H n of the 27 images, by image code (PairConstants)
+  Vec3 rate;                   // 1/s, the cell's strain rate (affine velocity D r)
+  double dt;                   // s
+  double v_char;               // m/s, for the laws that have one
+};
+
+// Last step's regimes (ContactScratch) describe the slots of the list they were made for: a new
+// list starts from none (its slots hold other pairs, and no slot's outputs are known to be zero).
+void restart_regimes(ContactScratch& hint, std::size_t m, std::uint64_t generation) {
+  if (hint.generation == generation) return;
+  hint.regime.assign(m, 0);
+  hint.order.assign(m, 0);
+  hint.stale.assign((m + k_block - 1) / k_block, 1);
+  hint.sorted.assign((m + k_block - 1) / k_block, 0);
+  hint.generation = generation;
+}
+
+// Binds the pass's arrays (sizing the outputs) and restarts the regimes of a new list.
+template <bool RollingHistory>
+PassData bind_pass(const Model& model, State& state, Scratch& scratch) {
   const ContactPairs& pairs = state.read<Component::contact_pairs>();
-  const Vec3* __restrict x = state.read<Component::particle_position>().data();
-  const Vec3* __restrict v = state.read<Component::particle_velocity>().data();
-  const Vec3* __restrict w = state.read<Component::particle_angular_velocity>().data();
-  const double* __restrict mass = state.read<Component::particle_mass>().data();
-  const std::uint32_t* __restrict material = state.read<Component::particle_material>().data();
   const PairConstants& constants = scratch.read<PairConstants>();
   SANDCELL_CHECK(constants.r_star.size() == pairs.size(),
                  "contact: " + std::to_string(constants.r_star.size()) + " pair constants for " +
@@ -77,207 +117,209 @@ void contact_loop(const Model& model, State& state, Scratch& scratch, Executor& 
   ContactForces& out = state.write<Component::contact_forces>();
   auto& tangential = state.write<Component::contact_tangential>();
   auto& rolling = state.write<Component::contact_rolling>();
-
   const std::size_t m = pairs.size();
   out.force.resize(m);
   out.torque_i.resize(m);
   out.torque_j.resize(m);
-  // cdt has no history: like none, it allocates none.
-  constexpr bool rolling_history = Roll == RollingModel::epsd2 || Roll == RollingModel::epsd;
-  if constexpr (rolling_history) rolling.resize(m);
-  // Last step's regimes (ContactScratch) describe the slots of the list they were made for: a new
-  // list starts from none (its slots hold other pairs, and no slot's outputs are known to be zero).
+  if constexpr (RollingHistory) rolling.resize(m);  // cdt has no history: like none, it allocates none
   ContactScratch& hint = scratch.own<ContactScratch>();
-  if (hint.generation != constants.generation) {
-    hint.regime.assign(m, 0);
-    hint.order.assign(m, 0);
-    hint.stale.assign((m + k_block - 1) / k_block, 1);
-    hint.sorted.assign((m + k_block - 1) / k_block, 0);
-    hint.generation = constants.generation;
-  }
+  restart_regimes(hint, m, constants.generation);
   SANDCELL_ASSERT(hint.regime.size() == m, "contact regimes of another pair list");
 
-  const Vec3 rate = cell.rate;
-  const std::size_t n_mat = model.materials.size();
-  const std::uint32_t* __restrict pi = pairs.i.data();
-  const std::uint32_t* __restrict pj = pairs.j.data();
-  const double* __restrict pair_r_star = constants.r_star.data();
-  const double* __restrict pair_m_star = constants.m_star.data();
-  const double* __restrict pair_r_i = constants.r_i.data();
-  const double* __restrict pair_r_j = constants.r_j.data();
-  const std::uint8_t* __restrict image_code = constants.image_code.data();
-  // H n of the 27 images, by image code (PairConstants): the product img * L exactly as per pair.
-  std::array<Vec3, 27> shift_table;
+  PassData d{pairs.i.data(), pairs.j.data(), state.read<Component::particle_position>().data(),
+             state.read<Component::particle_velocity>().data(),
+             state.read<Component::particle_angular_velocity>().data(),
+             state.read<Component::particle_mass>().data(), state.read<Component::particle_material>().data(),
+             constants.r_star.data(), constants.m_star.data(), constants.r_i.data(), constants.r_j.data(),
+             constants.image_code.data(), model.pairs.data(), model.materials.size(), out.force.data(),
+             out.torque_i.data(), out.torque_j.data(), tangential.data(), rolling.data(), hint.regime.data(),
+             hint.order.data(), hint.stale.data(), hint.sorted.data(), {}, cell.rate, model.dt,
+             characteristic_velocity(model.contact)};
+  // The product img * L exactly as per pair.
   for (int c = 0; c < 27; ++c) {
     const Image img{static_cast<std::int8_t>(c % 3 - 1), static_cast<std::int8_t>(c / 3 % 3 - 1),
                     static_cast<std::int8_t>(c / 9 - 1)};
-    shift_table[c] = Vec3(img[0] * cell.length[0], img[1] * cell.length[1], img[2] * cell.length[2]);
+    d.shift[c] = Vec3(img[0] * cell.length[0], img[1] * cell.length[1], img[2] * cell.length[2]);
   }
-  const Vec3* __restrict shift = shift_table.data();
-  Vec3* __restrict force = out.force.data();
-  Vec3* __restrict torque_i = out.torque_i.data();
-  Vec3* __restrict torque_j = out.torque_j.data();
-  Vec3* __restrict hist_t = tangential.data();
-  Vec3* __restrict hist_r = rolling.data();
-  std::uint8_t* __restrict regime = hint.regime.data();
-  std::uint8_t* __restrict order_all = hint.order.data();
-  std::uint8_t* __restrict stale = hint.stale.data();
-  std::uint8_t* __restrict sorted = hint.sorted.data();
-  const RollingEvaluator<Roll, Update> roll{model.dt, model.contact.rolling_damping};
+  return d;
+}
 
-  const PairMaterial* const pair_mat = model.pairs.data();
-  const double dt = model.dt;
-  const double v_char = characteristic_velocity(model.contact);
-  exec.parallel_for(m, k_contact_grain, [=](std::size_t b, std::size_t e) __attribute__((flatten)) {
-    // The pointers are copied by value into the closure: the pass needs more of them than there
-    // are registers, and a spilled copy reloads with one load instead of two through a reference.
-    // `flatten` inlines the laws' small Eigen operations into the loop: left to GCC's heuristics,
-    // composing the laws as types kept one of them out of line, +7.7 % instructions (callgrind).
+// The pass over one chunk of pairs, block by block, with the laws composed at compile time.
+template <class Normal, class Tangential, RollingModel Roll, bool Affine, bool Update>
+struct ContactKernel {
+  static constexpr bool rolling_history = Roll == RollingModel::epsd2 || Roll == RollingModel::epsd;
+  PassData d;
+  RollingEvaluator<Roll, Update> roll;
+
+  // Phase 1: gather. With one material the pair constants are the same for every pair and
+  // neither loaded nor stored per pair (the common case, compiled as its own loop).
+  template <bool OneMaterial>
+  void gather(Block& blk, std::size_t k0, std::size_t nb) const {
+    for (std::size_t t = 0; t < nb; ++t) {
+      const std::size_t k = k0 + t;
+      const std::uint32_t i = d.pi[k], j = d.pj[k];
+      const Vec3& s = d.shift[d.image_code[k]];
+      blk.rx[t] = d.x[i][0] - d.x[j][0] - s[0];
+      blk.ry[t] = d.x[i][1] - d.x[j][1] - s[1];
+      blk.rz[t] = d.x[i][2] - d.x[j][2] - s[2];
+      if constexpr (!OneMaterial) {
+        const PairMaterial& mat = d.pair_mat[d.material[i] * d.n_mat + d.material[j]];
+        blk.mat[t] = &mat;
+        blk.e_star[t] = mat.e_star;
+        blk.g_star[t] = mat.g_star;
+        blk.beta[t] = mat.beta;
+      }
+      // Phase 3 reads these per pair inside a long chain of arithmetic; fetching them here
+      // overlaps their cache misses across the block. Only the j side: i changes every ~4
+      // pairs and walks the arrays in order, which the hardware prefetcher follows.
+      __builtin_prefetch(&d.v[j]);
+      __builtin_prefetch(&d.w[j]);
+    }
+  }
+
+  // Phase 2: the normal law's stiffness and damping, branch-free (apart pairs get overlap <= 0,
+  // zeros after).
+  template <bool OneMaterial>
+  void stiffness(Block& blk, std::size_t k0, std::size_t nb) const {
+    for (std::size_t t = 0; t < nb; ++t) {
+      const PairMaterial& m0 = d.pair_mat[0];
+      const LawPair law_pair = OneMaterial ? LawPair{m0.e_star, m0.g_star, m0.beta, d.v_char}
+                                           : LawPair{blk.e_star[t], blk.g_star[t], blk.beta[t], d.v_char};
+      const double r2 = blk.rx[t] * blk.rx[t] + blk.ry[t] * blk.ry[t] + blk.rz[t] * blk.rz[t];
+      const double dist = std::sqrt(r2);
+      const double overlap = (d.r_i[k0 + t] + d.r_j[k0 + t]) - dist;
+      const double od = overlap > 0.0 ? overlap : 0.0;
+      blk.inv_dist[t] = 1.0 / dist;
+      blk.overlap[t] = overlap;
+      const Stiffness s = Normal::stiffness(law_pair, d.r_star[k0 + t], d.m_star[k0 + t], od);
+      blk.k_n[t] = s.k_n;
+      blk.k_t[t] = s.k_t;
+      blk.gamma_n[t] = s.gamma_n;
+    }
+  }
+
+  // Phase 3 visits the block's pairs grouped by their regime in the last step: touching below the
+  // caps, at the Coulomb cap, at the rolling cap, at both, open. The overlap and cap tests then run
+  // in stretches of the same outcome, which the branch predictor follows; in array order they come
+  // at random (in a dense sheared packing a good part of the touching pairs slide or roll at their
+  // caps, and a pair changes regime only a few times in 10,000 steps). The order is a stable
+  // counting sort of the block by regime, made again only when a regime in the block changed in
+  // the last step; a block of pairs all touching below the caps keeps array order.
+  // docs/performance.md gives the measured effect.
+  void sort_block(std::size_t k0, std::size_t nb) const {
+    const std::size_t block = k0 / k_block;
+    if (!d.stale[block]) return;
+    std::uint8_t* __restrict order = d.order + k0;
+    unsigned start[6] = {0, 0, 0, 0, 0, 0};
+    for (std::size_t t = 0; t < nb; ++t) ++start[d.regime[k0 + t] + 1];
+    d.sorted[block] = start[1] != nb;
+    if (d.sorted[block]) {
+      for (unsigned g = 1; g < 5; ++g) start[g] += start[g - 1];
+      for (std::size_t t = 0; t < nb; ++t) order[start[d.regime[k0 + t]]++] = static_cast<std::uint8_t>(t);
+    }
+    d.stale[block] = 0;
+  }
+
+  // Phase 3, one pair: normal force, tangential and rolling laws, outputs. An open pair already
+  // marked open is not written: its outputs are zero since it opened. Sets `changed` when the
+  // pair's regime changed.
+  void visit(const Block& blk, std::size_t k0, std::size_t t, unsigned& changed) const {
+    const std::size_t k = k0 + t;
+    if (!(blk.overlap[t] > 0.0)) {
+      if (d.regime[k] != ContactScratch::k_apart) [[unlikely]] {  // else all zero since the step it opened
+        d.force[k].setZero();
+        d.torque_i[k].setZero();
+        d.torque_j[k].setZero();
+        d.hist_t[k].setZero();  // history resets when the contact opens
+        if constexpr (rolling_history) d.hist_r[k].setZero();
+        d.regime[k] = ContactScratch::k_apart;
+        changed = 1;
+      }
+      return;
+    }
+    const std::uint32_t i = d.pi[k], j = d.pj[k];
+    const Vec3 r(blk.rx[t], blk.ry[t], blk.rz[t]);
+    PairKinematics c;
+    c.n = r * blk.inv_dist[t];
+    c.overlap = blk.overlap[t];
+    c.r_star = d.r_star[k];
+    c.c_i = d.r_i[k] - 0.5 * c.overlap;
+    c.c_j = d.r_j[k] - 0.5 * c.overlap;
+    c.v_rel = d.v[i] - d.v[j];
+    if constexpr (Affine) c.v_rel += d.rate.cwiseProduct(r);
+    c.w_i = d.w[i];
+    c.w_j = d.w[j];
+    const PairMaterial& mat = d.n_mat == 1 ? d.pair_mat[0] : *blk.mat[t];
+    const double k_n = blk.k_n[t], k_t = blk.k_t[t], gamma_n = blk.gamma_n[t];
+    const double v_n = c.v_rel.dot(c.n);
+    const double f_n = Normal::force(k_n, gamma_n, c.overlap, v_n);
+    const Vec3 v_t = c.v_rel - v_n * c.n + c.n.cross(c.c_i * c.w_i + c.c_j * c.w_j);
+    const double f_cap = mat.friction * std::abs(f_n);
+    const TangentialResult tr =
+        Tangential::template force<Update>(c.n, v_t, k_t, Normal::gamma_t(mat, gamma_n), f_cap, d.dt, d.hist_t[k]);
+    const Vec3 arm_torque = c.n.cross(tr.f_t);  // torque on i is -c_i n x F_t, on j -c_j n x F_t
+    Vec3 t_i = -c.c_i * arm_torque;
+    Vec3 t_j = -c.c_j * arm_torque;
+    unsigned rolling_capped = 0;
+    if constexpr (Roll != RollingModel::none) {
+      Vec3 no_history = Vec3::Zero();  // cdt: not read, not kept
+      double i_r = 0.0;
+      if constexpr (Roll == RollingModel::epsd) {
+        const double a = d.mass[i] * d.r_i[k] * d.r_i[k];
+        const double b = d.mass[j] * d.r_j[k] * d.r_j[k];
+        i_r = 1.4 * a * b / (a + b);
+      }
+      const Vec3 moment = roll.evaluate(
+          RollingInput{c.n, c.w_i - c.w_j, c.overlap, f_n, k_n, k_t, c.r_star, i_r, mat.rolling_friction},
+          rolling_history ? d.hist_r[k] : no_history, rolling_capped);
+      t_i -= moment;
+      t_j += moment;
+    }
+    d.force[k] = f_n * c.n + tr.f_t;
+    d.torque_i[k] = t_i;
+    d.torque_j[k] = t_j;
+    const std::uint8_t now = static_cast<std::uint8_t>(tr.capped | rolling_capped);
+    if (now != d.regime[k]) [[unlikely]] {  // a few times per pair in 10,000 steps
+      d.regime[k] = now;
+      changed = 1;
+    }
+  }
+
+  void chunk(std::size_t b, std::size_t e) const {
     Block blk;
     for (std::size_t k0 = b; k0 < e; k0 += k_block) {
       const std::size_t nb = std::min(k_block, e - k0);
-      // Phase 1: gather. With one material the pair constants are the same for every pair and
-      // neither loaded nor stored per pair (the common case, compiled as its own loop).
-      auto gather = [&](auto one_material) {
-        for (std::size_t t = 0; t < nb; ++t) {
-          const std::size_t k = k0 + t;
-          const std::uint32_t i = pi[k], j = pj[k];
-          const Vec3& s = shift[image_code[k]];
-          blk.rx[t] = x[i][0] - x[j][0] - s[0];
-          blk.ry[t] = x[i][1] - x[j][1] - s[1];
-          blk.rz[t] = x[i][2] - x[j][2] - s[2];
-          if constexpr (!decltype(one_material)::value) {
-            const PairMaterial& mat = pair_mat[material[i] * n_mat + material[j]];
-            blk.mat[t] = &mat;
-            blk.e_star[t] = mat.e_star;
-            blk.g_star[t] = mat.g_star;
-            blk.beta[t] = mat.beta;
-          }
-          // Phase 3 reads these per pair inside a long chain of arithmetic; fetching them here
-          // overlaps their cache misses across the block. Only the j side: i changes every ~4
-          // pairs and walks the arrays in order, which the hardware prefetcher follows.
-          __builtin_prefetch(&v[j]);
-          __builtin_prefetch(&w[j]);
-        }
-      };
-      // Phase 2: the normal law's stiffness and damping, branch-free (apart pairs get overlap <= 0,
-      // zeros after).
-      auto stiffness = [&](auto one_material) {
-        constexpr bool one = decltype(one_material)::value;
-        for (std::size_t t = 0; t < nb; ++t) {
-          const LawPair law_pair = one ? LawPair{pair_mat[0].e_star, pair_mat[0].g_star, pair_mat[0].beta, v_char}
-                                       : LawPair{blk.e_star[t], blk.g_star[t], blk.beta[t], v_char};
-          const double r2 = blk.rx[t] * blk.rx[t] + blk.ry[t] * blk.ry[t] + blk.rz[t] * blk.rz[t];
-          const double dist = std::sqrt(r2);
-          const double overlap = (pair_r_i[k0 + t] + pair_r_j[k0 + t]) - dist;
-          const double od = overlap > 0.0 ? overlap : 0.0;
-          blk.inv_dist[t] = 1.0 / dist;
-          blk.overlap[t] = overlap;
-          const Stiffness s = Normal::stiffness(law_pair, pair_r_star[k0 + t], pair_m_star[k0 + t], od);
-          blk.k_n[t] = s.k_n;
-          blk.k_t[t] = s.k_t;
-          blk.gamma_n[t] = s.gamma_n;
-        }
-      };
-      if (n_mat == 1) {
-        gather(std::true_type{});
-        stiffness(std::true_type{});
+      if (d.n_mat == 1) {
+        gather<true>(blk, k0, nb);
+        stiffness<true>(blk, k0, nb);
       } else {
-        gather(std::false_type{});
-        stiffness(std::false_type{});
+        gather<false>(blk, k0, nb);
+        stiffness<false>(blk, k0, nb);
       }
-      // Phase 3 visits the block's pairs grouped by their regime in the last step: touching below
-      // the caps, at the Coulomb cap, at the rolling cap, at both, open. The overlap and cap tests
-      // then run in stretches of the same outcome, which the branch predictor follows; in array
-      // order they come at random (in a dense sheared packing a good part of the touching pairs
-      // slide or roll at their caps, and a pair changes regime only a few times in 10,000 steps).
-      // The order is a stable counting sort of the block by regime, made again only when a regime
-      // in the block changed in the last step; a block of pairs all touching below the caps keeps
-      // array order. An open pair already marked open is not written: its outputs are zero since
-      // it opened. docs/performance.md gives the measured effect.
+      sort_block(k0, nb);
       const std::size_t block = k0 / k_block;
-      std::uint8_t* __restrict order = order_all + k0;
-      if (stale[block]) {
-        unsigned start[6] = {0, 0, 0, 0, 0, 0};
-        for (std::size_t t = 0; t < nb; ++t) ++start[regime[k0 + t] + 1];
-        sorted[block] = start[1] != nb;
-        if (sorted[block]) {
-          for (unsigned g = 1; g < 5; ++g) start[g] += start[g - 1];
-          for (std::size_t t = 0; t < nb; ++t) order[start[regime[k0 + t]]++] = static_cast<std::uint8_t>(t);
-        }
-        stale[block] = 0;
-      }
       unsigned changed = 0;
-      // Phase 3: normal force, tangential and rolling laws, outputs.
-      auto visit = [&](std::size_t t) __attribute__((always_inline)) {
-        const std::size_t k = k0 + t;
-        if (!(blk.overlap[t] > 0.0)) {
-          if (regime[k] != ContactScratch::k_apart) [[unlikely]] {  // else all zero since the step it opened
-            force[k].setZero();
-            torque_i[k].setZero();
-            torque_j[k].setZero();
-            hist_t[k].setZero();  // history resets when the contact opens
-            if constexpr (rolling_history) hist_r[k].setZero();
-            regime[k] = ContactScratch::k_apart;
-            changed = 1;
-          }
-          return;
-        }
-        const std::uint32_t i = pi[k], j = pj[k];
-        const Vec3 r(blk.rx[t], blk.ry[t], blk.rz[t]);
-        PairKinematics c;
-        c.n = r * blk.inv_dist[t];
-        c.overlap = blk.overlap[t];
-        c.r_star = pair_r_star[k];
-        c.c_i = pair_r_i[k] - 0.5 * c.overlap;
-        c.c_j = pair_r_j[k] - 0.5 * c.overlap;
-        c.v_rel = v[i] - v[j];
-        if constexpr (Affine) c.v_rel += rate.cwiseProduct(r);
-        c.w_i = w[i];
-        c.w_j = w[j];
-        const PairMaterial& mat = n_mat == 1 ? pair_mat[0] : *blk.mat[t];
-        const double k_n = blk.k_n[t], k_t = blk.k_t[t], gamma_n = blk.gamma_n[t];
-        const double v_n = c.v_rel.dot(c.n);
-        const double f_n = Normal::force(k_n, gamma_n, c.overlap, v_n);
-        const Vec3 v_t = c.v_rel - v_n * c.n + c.n.cross(c.c_i * c.w_i + c.c_j * c.w_j);
-        const double f_cap = mat.friction * std::abs(f_n);
-        const TangentialResult tr = Tangential::template force<Update>(c.n, v_t, k_t, Normal::gamma_t(mat, gamma_n),
-                                                                       f_cap, dt, hist_t[k]);
-        const Vec3 arm_torque = c.n.cross(tr.f_t);  // torque on i is -c_i n x F_t, on j -c_j n x F_t
-        Vec3 t_i = -c.c_i * arm_torque;
-        Vec3 t_j = -c.c_j * arm_torque;
-        unsigned rolling_capped = 0;
-        if constexpr (Roll != RollingModel::none) {
-          Vec3 no_history = Vec3::Zero();  // cdt: not read, not kept
-          double i_r = 0.0;
-          if constexpr (Roll == RollingModel::epsd) {
-            const double a = mass[i] * pair_r_i[k] * pair_r_i[k];
-            const double d = mass[j] * pair_r_j[k] * pair_r_j[k];
-            i_r = 1.4 * a * d / (a + d);
-          }
-          const Vec3 moment = roll.evaluate(RollingInput{c.n, c.w_i - c.w_j, c.overlap, f_n, k_n, k_t, c.r_star, i_r,
-                                                         mat.rolling_friction},
-                                            rolling_history ? hist_r[k] : no_history, rolling_capped);
-          t_i -= moment;
-          t_j += moment;
-        }
-        force[k] = f_n * c.n + tr.f_t;
-        torque_i[k] = t_i;
-        torque_j[k] = t_j;
-        const std::uint8_t now = static_cast<std::uint8_t>(tr.capped | rolling_capped);
-        if (now != regime[k]) [[unlikely]] {  // a few times per pair in 10,000 steps
-          regime[k] = now;
-          changed = 1;
-        }
-      };
-      if (sorted[block]) {
-        for (std::size_t u = 0; u < nb; ++u) visit(order[u]);
+      if (d.sorted[block]) {
+        const std::uint8_t* __restrict order = d.order + k0;
+        for (std::size_t u = 0; u < nb; ++u) visit(blk, k0, order[u], changed);
       } else {
-        for (std::size_t t = 0; t < nb; ++t) visit(t);  // no pair at a cap: array order
+        for (std::size_t t = 0; t < nb; ++t) visit(blk, k0, t, changed);  // no pair at a cap: array order
       }
-      stale[block] = changed != 0;
+      d.stale[block] = changed != 0;
     }
-  });
+  }
+};
+
+template <class Normal, class Tangential, RollingModel Roll, bool Affine, bool Update>
+void contact_loop(const Model& model, State& state, Scratch& scratch, Executor& exec) {
+  using Kernel = ContactKernel<Normal, Tangential, Roll, Affine, Update>;
+  const Kernel kernel{bind_pass<Kernel::rolling_history>(model, state, scratch),
+                      RollingEvaluator<Roll, Update>{model.dt, model.contact.rolling_damping}};
+  // `flatten` inlines the kernel and the laws' small Eigen operations into the loop: left to GCC's
+  // heuristics, composing the laws as types kept one of them out of line, +7.7 % instructions
+  // (callgrind).
+  exec.parallel_for(state.contacts.pairs.size(), k_contact_grain,
+                    [kernel](std::size_t b, std::size_t e) __attribute__((flatten)) { kernel.chunk(b, e); });
 }
 
 // Calls fn(std::type_identity<L>{}) for the law of `list` for which match(L) holds; false if none.
