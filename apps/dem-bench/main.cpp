@@ -11,7 +11,7 @@
 // homogenizer, the servo with the kinetic stress), R rounds interleaved so that machine noise
 // falls on every variant alike; prints the median throughput of each and its ratio to the default.
 //
-//   dem-bench --scaling [--scene FILE] [--steps N] [--threads T] [--rounds R] [--deform RATE] [--json]
+//   dem-bench --scaling [--scene FILE] [--steps N] [--threads T] [--rounds R] [--deform RATE] [--probe] [--json]
 // Thread scaling from 1 to T threads (default: all hardware threads): a 1-thread and a T-thread
 // world of the same scene advanced alternately, N steps at a time, R times; prints the median
 // throughput of each, the median of the R ratios, two references measured in the same rounds (T
@@ -32,6 +32,8 @@
 #include "systems/broadphase.hpp"
 #include "systems/catalogue.hpp"
 #include "systems/stress.hpp"
+
+#include "probe.hpp"
 
 #include <sys/resource.h>
 
@@ -146,7 +148,7 @@ double stream_rate(Executor& exec, std::vector<double>& x, std::vector<double>& 
 // It also prints the engine's per-system timers of the 1- and T-thread worlds summed over the
 // rounds: which pass loses what, measured in the same rounds.
 int run_scaling(const Model& model, const Packing& packing, long steps, int threads, int rounds, double deform,
-                bool json) {
+                bool json, bool probe) {
   // T = 0: all hardware threads, as the executor counts them (TBB's default concurrency).
   World many(model, make_state(model, packing), systems_for(model), ExecutorConfig{Backend::tbb, threads});
   threads = many.executor().threads();
@@ -176,13 +178,23 @@ int run_scaling(const Model& model, const Packing& packing, long steps, int thre
   };
   std::vector<double> sx(std::size_t{1} << 19, 1.0), sy(std::size_t{1} << 19, 0.0), stream_ratio;
   constexpr int k_stream_passes = 400;  // ~0.1 s per executor per round at ~40 GB/s
+  // What the machine allowed in each round, measured without the engine (probe.hpp).
+  std::vector<double> alu_ratio, pingpong, steal, foreign;
   for (int r = 0; r < rounds; ++r) {
+    const bench::CpuAccount account;
     rate_one.push_back(timed(one));
     rate_many.push_back(timed(many));
     ratio.push_back(rate_many.back() / rate_one.back());
     jobs_ratio.push_back(timed_jobs() / rate_one.back());
     const double s1 = stream_rate(one.executor(), sx, sy, k_stream_passes);
     stream_ratio.push_back(stream_rate(many.executor(), sx, sy, k_stream_passes) / s1);
+    if (probe) {
+      const double a1 = bench::alu_rate(1, 0.1);
+      alu_ratio.push_back(bench::alu_rate(threads, 0.1) / a1);
+      pingpong.push_back(bench::pingpong_ns(3));
+      steal.push_back(account.steal_fraction());
+      foreign.push_back(account.foreign_cpus());
+    }
   }
   const std::uint64_t digest = state_digest(one.state());
   bool same = state_digest(many.state()) == digest;
@@ -196,8 +208,19 @@ int run_scaling(const Model& model, const Packing& packing, long steps, int thre
                 "\"p90_ratio\": %.6g, \"p10_many_over_median_one\": %.6g",
                 quantile(rate_one, 0.1), quantile(rate_one, 0.9), quantile(rate_many, 0.1), quantile(rate_many, 0.9),
                 quantile(ratio, 0.1), quantile(ratio, 0.9), quantile(rate_many, 0.1) / median(rate_one));
-    std::printf(", \"jobs_median_ratio\": %.6g, \"stream_median_ratio\": %.6g, \"systems\": {",
-                median(jobs_ratio), median(stream_ratio));
+    std::printf(", \"jobs_median_ratio\": %.6g, \"stream_median_ratio\": %.6g", median(jobs_ratio),
+                median(stream_ratio));
+    // Every round's figures side by side (--probe adds the machine's, probe.hpp).
+    std::printf(", \"rounds_detail\": [");
+    for (std::size_t k = 0; k < ratio.size(); ++k) {
+      std::printf("%s{\"one\": %.6g, \"many\": %.6g, \"jobs_ratio\": %.6g, \"stream_ratio\": %.6g", k ? ", " : "",
+                  rate_one[k], rate_many[k], jobs_ratio[k], stream_ratio[k]);
+      if (probe)
+        std::printf(", \"alu_ratio\": %.6g, \"pingpong_ns\": %.6g, \"steal\": %.6g, \"foreign_cpus\": %.6g",
+                    alu_ratio[k], pingpong[k], steal[k], foreign[k]);
+      std::printf("}");
+    }
+    std::printf("], \"systems\": {");
     for (std::size_t k = 0; k < one.graph().size(); ++k)
       std::printf("%s\"%s\": [%.6f, %.6f]", k ? ", " : "", one.graph().system(k).name.c_str(), one.graph().timers()[k],
                   many.graph().timers()[k]);
@@ -217,6 +240,14 @@ int run_scaling(const Model& model, const Packing& packing, long steps, int thre
                 threads, median(jobs_ratio));
     std::printf("  machine     y += a x over 2 x 4 MiB, 1 -> %d threads in the same rounds: median ratio %.3f\n",
                 threads, median(stream_ratio));
+    if (probe) {
+      std::printf("  rounds      1-thread, %d-thread M/s, ratio; without the engine: %d worlds at once, streaming, "
+                  "register-only (ratios); ping-pong ns; steal; other processes (CPUs)\n", threads, threads);
+      for (std::size_t k = 0; k < ratio.size(); ++k)
+        std::printf("    %3zu  %7.3f %7.3f %5.2f   %5.2f %5.2f %5.2f   %7.1f  %5.3f  %5.2f\n", k + 1, rate_one[k] / 1e6,
+                    rate_many[k] / 1e6, ratio[k], jobs_ratio[k], stream_ratio[k], alu_ratio[k], pingpong[k], steal[k],
+                    foreign[k]);
+    }
     std::printf("  per system  seconds over all rounds, 1 -> %d threads (ratio):\n", threads);
     for (std::size_t k = 0; k < one.graph().size(); ++k) {
       const double a = one.graph().timers()[k], b = many.graph().timers()[k];
@@ -281,7 +312,7 @@ int main(int argc, char** argv) {
   long steps = 2000;
   int threads = 0;
   double deform = 0.0;
-  bool json = false, serial = false, costs = false, scaling = false;
+  bool json = false, serial = false, costs = false, scaling = false, probe = false;
   int rounds = 3;
   long sort_interval = -1;
   Model model;
@@ -301,6 +332,7 @@ int main(int argc, char** argv) {
     else if (arg == "--json") json = true;
     else if (arg == "--costs") costs = true;
     else if (arg == "--scaling") scaling = true;
+    else if (arg == "--probe") probe = true;
     else if (arg == "--rounds") rounds = static_cast<int>(parse_number("--rounds", value(), 1, 1000));
     else if (arg == "--rolling") {
       const std::string_view v = value();
@@ -318,7 +350,7 @@ int main(int argc, char** argv) {
       std::printf("usage: dem-bench [--scene FILE] [--steps N] [--threads T] [--deform RATE] [--rolling none|epsd2|epsd|cdt]\n"
                   "                 [--tangential history|incremental] [--compat] [--sort STEPS] [--serial] [--json]\n"
                   "       dem-bench --costs [--scene FILE] [--steps N] [--threads T] [--rounds R]\n"
-                  "       dem-bench --scaling [--scene FILE] [--steps N] [--threads T] [--rounds R] [--deform RATE] [--json]\n");
+                  "       dem-bench --scaling [--scene FILE] [--steps N] [--threads T] [--rounds R] [--deform RATE] [--probe] [--json]\n");
       return 0;
     } else {
       usage_error("unknown argument '" + std::string(arg) + "' (see --help)");
@@ -339,7 +371,7 @@ int main(int argc, char** argv) {
     usage_error(e.what());
   }
   if (costs) return run_costs(model, packing, steps, threads, rounds);
-  if (scaling) return run_scaling(model, packing, steps, threads, rounds, deform, json);
+  if (scaling) return run_scaling(model, packing, steps, threads, rounds, deform, json, probe);
   const ExecutorConfig exec{serial ? Backend::serial : Backend::tbb, threads};
   World world(model, make_state(model, packing), systems_for(model), exec);
   const std::size_t n = world.state().particles.size();
