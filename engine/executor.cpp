@@ -19,7 +19,7 @@
 
 namespace sandcell {
 
-Executor::Executor(ExecutorConfig config) : backend_(config.backend) {
+Executor::Executor(ExecutorConfig config) : backend_(config.backend), partition_(config.partition) {
   // Every world has an executor: this reference links engine/cpu_guard.cpp into every program, and
   // with it the startup check that stops a build for a newer CPU with a message (build_arch.hpp).
   static_cast<void>(build_arch());
@@ -61,13 +61,14 @@ void Executor::parallel_for(std::size_t n, std::size_t grain,
     for (std::size_t c = 0; c < chunks; ++c) body(c * grain, std::min(n, (c + 1) * grain));
     return;
   }
+  const auto run = [&](const tbb::blocked_range<std::size_t>& r) {
+    for (std::size_t c = r.begin(); c < r.end(); ++c) body(c * grain, std::min(n, (c + 1) * grain));
+  };
   impl_->arena.execute([&] {
-    tbb::parallel_for(
-        tbb::blocked_range<std::size_t>(0, chunks, 1),
-        [&](const tbb::blocked_range<std::size_t>& r) {
-          for (std::size_t c = r.begin(); c < r.end(); ++c) body(c * grain, std::min(n, (c + 1) * grain));
-        },
-        tbb::simple_partitioner());
+    if (partition_ == Partition::fixed)
+      tbb::parallel_for(tbb::blocked_range<std::size_t>(0, chunks, 1), run, tbb::static_partitioner());
+    else
+      tbb::parallel_for(tbb::blocked_range<std::size_t>(0, chunks, 1), run, tbb::simple_partitioner());
   });
 }
 

@@ -16,9 +16,18 @@ namespace sandcell {
 
 enum class Backend { serial, tbb };
 
+/// How parallel_for hands its chunks to the threads (the chunks themselves, and so every result,
+/// are the same either way).
+enum class Partition {
+  dynamic,  // work stealing, one chunk at a time: balances uneven chunks and a core slowed by others
+  fixed,    // each thread takes the same contiguous share of the chunks every pass (TBB
+            // static_partitioner): a thread keeps working on the same particles and pairs
+};
+
 struct ExecutorConfig {
   Backend backend = Backend::tbb;
   int threads = 0;  // 0: available_cpus(); ignored by the serial backend (always 1)
+  Partition partition = Partition::dynamic;
 };
 
 /// The CPUs this process may use: SLURM_CPUS_PER_TASK inside a Slurm job step when it is a positive
@@ -34,6 +43,7 @@ class Executor {
   Executor& operator=(const Executor&) = delete;
 
   Backend backend() const { return backend_; }
+  Partition partition() const { return partition_; }
   int threads() const { return threads_; }
 
   /// Calls body(begin, end) for consecutive chunks of `grain` indices covering [0, n).
@@ -71,6 +81,7 @@ class Executor {
 
  private:
   Backend backend_;
+  Partition partition_ = Partition::dynamic;
   int threads_;
   std::unique_ptr<Impl> impl_;
 };

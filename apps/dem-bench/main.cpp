@@ -11,7 +11,7 @@
 // homogenizer, the servo with the kinetic stress), R rounds interleaved so that machine noise
 // falls on every variant alike; prints the median throughput of each and its ratio to the default.
 //
-//   dem-bench --scaling [--scene FILE] [--steps N] [--threads T] [--rounds R] [--deform RATE] [--probe] [--json]
+//   dem-bench --scaling [--scene FILE] [--steps N] [--threads T] [--rounds R] [--deform RATE] [--partition P] [--probe] [--json]
 // Thread scaling from 1 to T threads (default: all hardware threads): a 1-thread and a T-thread
 // world of the same scene advanced alternately, N steps at a time, R times; prints the median
 // throughput of each, the median of the R ratios, two references measured in the same rounds (T
@@ -148,9 +148,9 @@ double stream_rate(Executor& exec, std::vector<double>& x, std::vector<double>& 
 // It also prints the engine's per-system timers of the 1- and T-thread worlds summed over the
 // rounds: which pass loses what, measured in the same rounds.
 int run_scaling(const Model& model, const Packing& packing, long steps, int threads, int rounds, double deform,
-                bool json, bool probe) {
+                bool json, bool probe, Partition partition) {
   // T = 0: all hardware threads, as the executor counts them (TBB's default concurrency).
-  World many(model, make_state(model, packing), systems_for(model), ExecutorConfig{Backend::tbb, threads});
+  World many(model, make_state(model, packing), systems_for(model), ExecutorConfig{Backend::tbb, threads, partition});
   threads = many.executor().threads();
   if (threads < 2) usage_error("--scaling needs --threads T >= 2 (got " + std::to_string(threads) + ")");
   World one(model, make_state(model, packing), systems_for(model), ExecutorConfig{Backend::tbb, 1});
@@ -313,6 +313,7 @@ int main(int argc, char** argv) {
   int threads = 0;
   double deform = 0.0;
   bool json = false, serial = false, costs = false, scaling = false, probe = false;
+  Partition partition = Partition::dynamic;
   int rounds = 3;
   long sort_interval = -1;
   Model model;
@@ -333,6 +334,12 @@ int main(int argc, char** argv) {
     else if (arg == "--costs") costs = true;
     else if (arg == "--scaling") scaling = true;
     else if (arg == "--probe") probe = true;
+    else if (arg == "--partition") {
+      const std::string_view v = value();
+      if (v == "dynamic") partition = Partition::dynamic;
+      else if (v == "fixed") partition = Partition::fixed;
+      else usage_error("--partition = '" + std::string(v) + "': allowed dynamic, fixed");
+    }
     else if (arg == "--rounds") rounds = static_cast<int>(parse_number("--rounds", value(), 1, 1000));
     else if (arg == "--rolling") {
       const std::string_view v = value();
@@ -348,9 +355,9 @@ int main(int argc, char** argv) {
       else usage_error("--tangential = '" + std::string(v) + "': allowed history, incremental");
     } else if (arg == "--help" || arg == "-h") {
       std::printf("usage: dem-bench [--scene FILE] [--steps N] [--threads T] [--deform RATE] [--rolling none|epsd2|epsd|cdt]\n"
-                  "                 [--tangential history|incremental] [--compat] [--sort STEPS] [--serial] [--json]\n"
+                  "                 [--tangential history|incremental] [--compat] [--sort STEPS] [--serial] [--partition dynamic|fixed] [--json]\n"
                   "       dem-bench --costs [--scene FILE] [--steps N] [--threads T] [--rounds R]\n"
-                  "       dem-bench --scaling [--scene FILE] [--steps N] [--threads T] [--rounds R] [--deform RATE] [--probe] [--json]\n");
+                  "       dem-bench --scaling [--scene FILE] [--steps N] [--threads T] [--rounds R] [--deform RATE] [--partition P] [--probe] [--json]\n");
       return 0;
     } else {
       usage_error("unknown argument '" + std::string(arg) + "' (see --help)");
@@ -371,8 +378,8 @@ int main(int argc, char** argv) {
     usage_error(e.what());
   }
   if (costs) return run_costs(model, packing, steps, threads, rounds);
-  if (scaling) return run_scaling(model, packing, steps, threads, rounds, deform, json, probe);
-  const ExecutorConfig exec{serial ? Backend::serial : Backend::tbb, threads};
+  if (scaling) return run_scaling(model, packing, steps, threads, rounds, deform, json, probe, partition);
+  const ExecutorConfig exec{serial ? Backend::serial : Backend::tbb, threads, partition};
   World world(model, make_state(model, packing), systems_for(model), exec);
   const std::size_t n = world.state().particles.size();
   const double lz0 = world.state().cell.length[2];
