@@ -1500,18 +1500,16 @@ static int run_campaign(const Plan& plan, const Options& options, const std::vec
   return failures ? 1 : interrupted ? 3 : 0;
 }
 
-int triaxial_main(int argc, const char* const* argv, std::ostream& out, std::ostream& err) {
-  // `triaxial analyze RESULTS... [--out DIR]`: the critical-state and dilatancy analysis (analyze.py).
-  if (argc >= 2 && std::string(argv[1]) == "analyze") return script_main("analyze", argc - 1, argv + 1, err);
-  // `triaxial study CONFIG [--preset quick|inertia|full|size]`: the speed-accuracy study (study.py).
-  if (argc >= 2 && std::string(argv[1]) == "study") return script_main("study", argc - 1, argv + 1, err);
-  // `triaxial localization RESULTS.h5... [--out DIR] [--grid G] [--whole] [--slabs K]`: strain fields between snapshots (localization.py).
-  if (argc >= 2 && std::string(argv[1]) == "localization") return script_main("localization", argc - 1, argv + 1, err);
-  // `triaxial slurm CONFIG --out DIR [--submit]`: the campaign as Slurm job arrays (slurm.hpp).
-  if (argc >= 2 && std::string(argv[1]) == "slurm") return slurm_main(argc - 1, argv + 1, out, err);
+// The command line of a run: the options the jobs see, and the flags that end the process early.
+struct CommandLine {
   Options options;
   bool print_default = false;
-  CLI::App app{"sandcell triaxial: true triaxial DEM tests in a stress-controlled periodic cell"};
+  bool check_only = false;
+};
+
+// The options of `triaxial [CONFIG] ...` (--help lists them in this order).
+static void add_run_options(CLI::App& app, CommandLine& cl) {
+  Options& options = cl.options;
   app.footer("Analysis of results (critical state line, M(theta), dilatancy; report and figures):\n"
              "  triaxial analyze RESULTS.h5|DIR... [--out DIR]   (triaxial analyze --help for its options)\n"
              "Speed versus accuracy (timestep, inertial number, stiffness, restitution, N; table and Pareto figure):\n"
@@ -1534,11 +1532,18 @@ int triaxial_main(int argc, const char* const* argv, std::ostream& out, std::ost
   app.add_option("--allow-change", options.allow_change,
                  "with --resume or --task: let these config keys (section.key) differ from the run's (.config.toml)")
       ->take_all();
-  app.add_flag("--print-default", print_default, "print the embedded default configuration and exit");
-  bool check_only = false;
-  app.add_flag("--check", check_only, "check the configuration (and plan the campaign) and exit; nothing is written");
+  app.add_flag("--print-default", cl.print_default, "print the embedded default configuration and exit");
+  app.add_flag("--check", cl.check_only, "check the configuration (and plan the campaign) and exit; nothing is written");
   app.add_option("--stop-after", options.stop_after,
                  "stop every job after N steps with a checkpoint, as if killed (to test --resume)");
+}
+
+// Parses the command line of a run into `cl`. Returns the exit code when the process ends here
+// (--help: 0; a bad option: 2, after a one-line message), else nothing.
+static std::optional<int> parse_command_line(int argc, const char* const* argv, CommandLine& cl, std::ostream& out,
+                                             std::ostream& err) {
+  CLI::App app{"sandcell triaxial: true triaxial DEM tests in a stress-controlled periodic cell"};
+  add_run_options(app, cl);
   try {
     app.parse(argc, argv);
   } catch (const CLI::CallForHelp& e) {
@@ -1548,10 +1553,11 @@ int triaxial_main(int argc, const char* const* argv, std::ostream& out, std::ost
     err << "triaxial: " << e.what() << " (see --help)\n";
     return 2;
   }
-  if (print_default) {
-    out << k_default_config;
-    return 0;
-  }
+  return std::nullopt;
+}
+
+// The checks of the options that CLI11 does not make. Returns 0, or 2 after a one-line message.
+static int check_options(const Options& options, std::ostream& err) {
   if (options.resume && options.overwrite) {
     err << "triaxial: --resume and --overwrite exclude each other\n";
     return 2;
@@ -1561,33 +1567,91 @@ int triaxial_main(int argc, const char* const* argv, std::ostream& out, std::ost
     return 2;
   }
   // Path limits of Linux: 4096 bytes in all, 255 a name (a longer one fails every file call).
-  {
-    std::size_t longest = 0;
-    for (const auto& part : fs::path(options.out)) longest = std::max(longest, part.native().size());
-    if (options.out.size() > 3800 || longest > 255) {
-      err << "triaxial: --out = " << options.out.substr(0, 40) << "... (" << options.out.size()
-          << " characters): allowed: a path under 3800 characters, each name under 256\n";
-      return 2;
-    }
+  std::size_t longest = 0;
+  for (const auto& part : fs::path(options.out)) longest = std::max(longest, part.native().size());
+  if (options.out.size() > 3800 || longest > 255) {
+    err << "triaxial: --out = " << options.out.substr(0, 40) << "... (" << options.out.size()
+        << " characters): allowed: a path under 3800 characters, each name under 256\n";
+    return 2;
   }
+  return 0;
+}
+
+// The run's configuration (the file named, else the embedded default), parsed and planned.
+// Throws ConfigError, or a file system error on an unreadable path.
+static Plan load_plan(const Options& options) {
+  std::string text, source = "<embedded default>";
+  if (options.config_path.empty()) {
+    text = k_default_config;
+  } else {
+    std::ifstream in(options.config_path);
+    if (!in || fs::is_directory(options.config_path))
+      throw ConfigError(options.config_path + ": cannot read the configuration file" +
+                        (fs::is_directory(options.config_path) ? " (a directory)" : ""));
+    std::ostringstream buffer;
+    buffer << in.rdbuf();
+    text = buffer.str();
+    source = options.config_path;
+  }
+  return make_plan(parse_config(text, source), options);
+}
+
+// --out, else results/<config name> (results/default for the embedded default).
+static fs::path output_directory(const Options& options) {
+  return !options.out.empty()          ? fs::path(options.out)
+         : options.config_path.empty() ? fs::path("results/default")
+                                        : fs::path("results") / fs::path(options.config_path).stem();
+}
+
+// --list: the tasks in a stable order, preparations by p0 (as prepared), then the tests.
+static void list_tasks(const Plan& plan, std::ostream& out) {
+  const std::size_t n_prep = plan.p0.size();
+  for (std::size_t k = 0; k < plan.p0.size(); ++k) out << k << " prepare prepare-" << p0_tag(plan.p0[k]) << '\n';
+  for (std::size_t k = 0; k < plan.config.tests.size(); ++k) out << n_prep + k << " test " << plan.config.tests[k].name << '\n';
+}
+
+// --task: runs only the tasks named (indices of --list), marked in run_prep and run_test.
+// Returns 0, or 2 after a one-line message.
+static int select_tasks(const Plan& plan, const std::vector<std::string>& specs, std::vector<char>& run_prep,
+                        std::vector<char>& run_test, std::ostream& err) {
+  const std::size_t n_prep = plan.p0.size(), n_tasks = plan.p0.size() + plan.config.tests.size();
+  if (plan.config.tests.size() < 2) {
+    err << "triaxial: --task: " << plan.config.source << " has one test, not a campaign; run it without --task\n";
+    return 2;
+  }
+  std::vector<std::size_t> tasks;
+  if (std::string bad = parse_tasks(specs, n_tasks, tasks); !bad.empty()) {
+    err << "triaxial: --task " << bad << '\n';
+    return 2;
+  }
+  std::fill(run_prep.begin(), run_prep.end(), 0);
+  std::fill(run_test.begin(), run_test.end(), 0);
+  for (std::size_t t : tasks) (t < n_prep ? run_prep[t] : run_test[t - n_prep]) = 1;
+  return 0;
+}
+
+int triaxial_main(int argc, const char* const* argv, std::ostream& out, std::ostream& err) {
+  // `triaxial analyze RESULTS... [--out DIR]`: the critical-state and dilatancy analysis (analyze.py).
+  if (argc >= 2 && std::string(argv[1]) == "analyze") return script_main("analyze", argc - 1, argv + 1, err);
+  // `triaxial study CONFIG [--preset quick|inertia|full|size]`: the speed-accuracy study (study.py).
+  if (argc >= 2 && std::string(argv[1]) == "study") return script_main("study", argc - 1, argv + 1, err);
+  // `triaxial localization RESULTS.h5... [--out DIR] [--grid G] [--whole] [--slabs K]`: strain fields between snapshots (localization.py).
+  if (argc >= 2 && std::string(argv[1]) == "localization") return script_main("localization", argc - 1, argv + 1, err);
+  // `triaxial slurm CONFIG --out DIR [--submit]`: the campaign as Slurm job arrays (slurm.hpp).
+  if (argc >= 2 && std::string(argv[1]) == "slurm") return slurm_main(argc - 1, argv + 1, out, err);
+  CommandLine cl;
+  if (const std::optional<int> code = parse_command_line(argc, argv, cl, out, err)) return *code;
+  Options& options = cl.options;
+  if (cl.print_default) {
+    out << k_default_config;
+    return 0;
+  }
+  if (const int code = check_options(options, err); code != 0) return code;
   options.progress = ::isatty(STDOUT_FILENO) && &out == &std::cout;
 
   Plan plan;
   try {
-    std::string text, source = "<embedded default>";
-    if (options.config_path.empty()) {
-      text = k_default_config;
-    } else {
-      std::ifstream in(options.config_path);
-      if (!in || fs::is_directory(options.config_path))
-        throw ConfigError(options.config_path + ": cannot read the configuration file" +
-                          (fs::is_directory(options.config_path) ? " (a directory)" : ""));
-      std::ostringstream buffer;
-      buffer << in.rdbuf();
-      text = buffer.str();
-      source = options.config_path;
-    }
-    plan = make_plan(parse_config(text, source), options);
+    plan = load_plan(options);
   } catch (const ConfigError& e) {
     err << "triaxial: " << one_line(e.what()) << '\n';
     return 2;
@@ -1595,37 +1659,21 @@ int triaxial_main(int argc, const char* const* argv, std::ostream& out, std::ost
     err << "triaxial: " << one_line(e.what()) << '\n';
     return 2;
   }
-  if (check_only) {
+  if (cl.check_only) {
     out << "triaxial: " << plan.config.source << ": valid: " << plan.config.tests.size() << " test(s), " << plan.p0.size()
         << " sample(s), dt = " << num(plan.base.dt) << " s\n";
     return 0;
   }
-  plan.out = !options.out.empty() ? fs::path(options.out)
-             : options.config_path.empty() ? fs::path("results/default")
-                                           : fs::path("results") / fs::path(options.config_path).stem();
-  const std::size_t n_prep = plan.p0.size(), n_tasks = plan.p0.size() + plan.config.tests.size();
-  if (options.list) {  // tasks in a stable order: preparations by p0 (as prepared), then the tests
-    for (std::size_t k = 0; k < plan.p0.size(); ++k) out << k << " prepare prepare-" << p0_tag(plan.p0[k]) << '\n';
-    for (std::size_t k = 0; k < plan.config.tests.size(); ++k) out << n_prep + k << " test " << plan.config.tests[k].name << '\n';
+  plan.out = output_directory(options);
+  if (options.list) {
+    list_tasks(plan, out);
     return 0;
   }
   // --task: which tasks this process runs (all when not given).
-  std::vector<char> run_prep(n_prep, 1), run_test(plan.config.tests.size(), options.prepare_only ? 0 : 1);
+  std::vector<char> run_prep(plan.p0.size(), 1), run_test(plan.config.tests.size(), options.prepare_only ? 0 : 1);
   const bool selected = !options.task_specs.empty();
-  if (selected) {
-    if (plan.config.tests.size() < 2) {
-      err << "triaxial: --task: " << plan.config.source << " has one test, not a campaign; run it without --task\n";
-      return 2;
-    }
-    std::vector<std::size_t> tasks;
-    if (std::string bad = parse_tasks(options.task_specs, n_tasks, tasks); !bad.empty()) {
-      err << "triaxial: --task " << bad << '\n';
-      return 2;
-    }
-    std::fill(run_prep.begin(), run_prep.end(), 0);
-    std::fill(run_test.begin(), run_test.end(), 0);
-    for (std::size_t t : tasks) (t < n_prep ? run_prep[t] : run_test[t - n_prep]) = 1;
-  }
+  if (selected)
+    if (const int code = select_tasks(plan, options.task_specs, run_prep, run_test, err); code != 0) return code;
 
   FileLock dir_lock;  // held until the campaign ends
   if (const int code = claim_directory(plan, options, selected, run_prep, run_test, dir_lock, err); code != 0) return code;
