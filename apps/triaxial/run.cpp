@@ -1028,13 +1028,11 @@ std::string deep_overlap(const Packing& pk) {
   return "";
 }
 
-Plan make_plan(Config config_in, const Options& options) {
-  Plan plan;
-  plan.options = options;
-  plan.config = std::move(config_in);
-  const Config& config = plan.config;
-  const std::string& src = config.source;
-  const SampleConfig& sc = config.sample;
+// The sample's diameters: the packing file's (read into plan.packing, checked for coincident
+// spheres), else those [sample] generates. Throws ConfigError.
+std::vector<double> sample_sizes(Plan& plan) {
+  const std::string& src = plan.config.source;
+  const SampleConfig& sc = plan.config.sample;
   std::vector<double> diameters;
   if (!sc.packing_file.empty()) {
     try {
@@ -1050,16 +1048,13 @@ Plan make_plan(Config config_in, const Options& options) {
   } else {
     diameters = sample_diameters(sc.generation.sizes, sc.generation.count, sc.generation.seed);
   }
-  plan.r_min = 0.5 * *std::min_element(diameters.begin(), diameters.end());
-  plan.r_max = 0.5 * *std::max_element(diameters.begin(), diameters.end());
-  {
-    std::vector<double> radii(diameters.size());
-    for (std::size_t k = 0; k < diameters.size(); ++k) radii[k] = 0.5 * diameters[k];
-    plan.d50 = median_diameter(radii);
-  }
-  double solid = 0.0;
-  for (double d : diameters) solid += std::numbers::pi / 6.0 * d * d * d;
+  return diameters;
+}
 
+// The shear stage's model (material, contact settings, skin, dt) and the time units of the
+// preparation and the servos, from the smallest radius.
+void derive_model(Plan& plan) {
+  const Config& config = plan.config;
   Model& m = plan.base;
   m.materials = {config.material};
   m.contact = config.contact;
@@ -1071,10 +1066,16 @@ Plan make_plan(Config config_in, const Options& options) {
   plan.prepare_dt = config.prepare.dt_fraction > 0.0 ? config.prepare.dt_fraction * rayleigh_time(plan.r_min, config.material)
                                                      : m.dt;
   plan.prepare_servo_time = std::max(plan.prepare_dt, k_servo_time_fraction * rayleigh_time(plan.r_min, config.material));
+}
 
-  // The cell must stay wider than 2 r_max + skin through the test: at a dense random packing
-  // (solid fraction <= 0.64) after preparation, then shortened by the axial strain.
-  const double max_strain = options.max_axial_strain > 0.0 ? options.max_axial_strain : config.shear.max_axial_strain;
+// The cell must stay wider than 2 r_max + skin through the test: at a dense random packing
+// (solid fraction <= 0.64) after preparation, then shortened by the axial strain. Throws
+// ConfigError naming the key at fault.
+void check_cell_width(const Plan& plan, const std::vector<double>& diameters, double max_strain) {
+  const Config& config = plan.config;
+  const Model& m = plan.base;
+  double solid = 0.0;
+  for (double d : diameters) solid += std::numbers::pi / 6.0 * d * d * d;
   const double side = std::cbrt(solid / 0.64);
   double narrowest = side;
   for (const TestSpec& t : config.tests) {
@@ -1086,26 +1087,28 @@ Plan make_plan(Config config_in, const Options& options) {
     }
   }
   const double cutoff = 2.0 * plan.r_max + m.contact.skin;
-  if (!(narrowest > cutoff)) {
-    const double needed = static_cast<double>(diameters.size()) * std::pow(cutoff / narrowest, 3.0);
-    // The key at fault first: a skin wider than the spheres, a packing file's huge sphere, a
-    // strain path that collapses the cell; else the sample is too small.
-    std::string key = "sample.count = " + std::to_string(diameters.size());
-    if (m.contact.skin > 2.0 * plan.r_max) key = "contact.skin = " + num(m.contact.skin) + " m (wider than the largest sphere)";
-    else if (plan.from_file && 2.0 * plan.r_max > 0.25 * side)
-      key = "sample.file = \"" + sc.packing_file + "\": its largest radius " + num(plan.r_max) + " m";
-    else if (narrowest < side * std::exp(-max_strain) && config.shear.steps > 0)
-      key = "shear.steps = " + std::to_string(config.shear.steps) + " (with shear.strain_rates)";
-    throw ConfigError(src + ": " + key + ": the cell would narrow to " +
-                      num(narrowest) + " m (dense sample, then the axial strain), not wider than 2 r_max + skin = " +
-                      num(cutoff) + " m; allowed: more than " + num(std::ceil(needed), "%.0f") +
-                      " spheres, or a smaller shear.max_axial_strain");
-  }
-  for (const TestSpec& t : config.tests)
-    if (std::find(plan.p0.begin(), plan.p0.end(), t.p0) == plan.p0.end()) plan.p0.push_back(t.p0);
-  if (config.prepare.chain) std::sort(plan.p0.begin(), plan.p0.end());
-  // Runs that cannot end in any reasonable time (a 1e308 Pa modulus made dt 1e-155 s) or whose
-  // servo acts too seldom to control anything are refused, naming the key.
+  if (narrowest > cutoff) return;
+  const double needed = static_cast<double>(diameters.size()) * std::pow(cutoff / narrowest, 3.0);
+  // The key at fault first: a skin wider than the spheres, a packing file's huge sphere, a
+  // strain path that collapses the cell; else the sample is too small.
+  std::string key = "sample.count = " + std::to_string(diameters.size());
+  if (m.contact.skin > 2.0 * plan.r_max) key = "contact.skin = " + num(m.contact.skin) + " m (wider than the largest sphere)";
+  else if (plan.from_file && 2.0 * plan.r_max > 0.25 * side)
+    key = "sample.file = \"" + config.sample.packing_file + "\": its largest radius " + num(plan.r_max) + " m";
+  else if (narrowest < side * std::exp(-max_strain) && config.shear.steps > 0)
+    key = "shear.steps = " + std::to_string(config.shear.steps) + " (with shear.strain_rates)";
+  throw ConfigError(config.source + ": " + key + ": the cell would narrow to " +
+                    num(narrowest) + " m (dense sample, then the axial strain), not wider than 2 r_max + skin = " +
+                    num(cutoff) + " m; allowed: more than " + num(std::ceil(needed), "%.0f") +
+                    " spheres, or a smaller shear.max_axial_strain");
+}
+
+// Runs that cannot end in any reasonable time (a 1e308 Pa modulus made dt 1e-155 s) or whose
+// servo acts too seldom to control anything are refused, naming the key.
+void check_run_lengths(const Plan& plan, double max_strain) {
+  const Config& config = plan.config;
+  const std::string& src = config.source;
+  const Model& m = plan.base;
   for (const TestSpec& t : config.tests) {
     if (t.path == ShearPath::strain) continue;
     const double rate = axial_rate(plan, t.p0);
@@ -1130,6 +1133,28 @@ Plan make_plan(Config config_in, const Options& options) {
       throw ConfigError(src + ": " + (plan.prepare_dt < 1e-12 ? "material.young = " + num(config.material.young) + " Pa" : "prepare.max_rate = " + num(config.prepare.max_rate)) +
                         ": the preparation would take more than " + num(steps, "%.2g") + " steps; allowed: up to 1e10");
   }
+}
+
+Plan make_plan(Config config_in, const Options& options) {
+  Plan plan;
+  plan.options = options;
+  plan.config = std::move(config_in);
+  const Config& config = plan.config;
+  const std::vector<double> diameters = sample_sizes(plan);
+  plan.r_min = 0.5 * *std::min_element(diameters.begin(), diameters.end());
+  plan.r_max = 0.5 * *std::max_element(diameters.begin(), diameters.end());
+  {
+    std::vector<double> radii(diameters.size());
+    for (std::size_t k = 0; k < diameters.size(); ++k) radii[k] = 0.5 * diameters[k];
+    plan.d50 = median_diameter(radii);
+  }
+  derive_model(plan);
+  const double max_strain = options.max_axial_strain > 0.0 ? options.max_axial_strain : config.shear.max_axial_strain;
+  check_cell_width(plan, diameters, max_strain);
+  for (const TestSpec& t : config.tests)
+    if (std::find(plan.p0.begin(), plan.p0.end(), t.p0) == plan.p0.end()) plan.p0.push_back(t.p0);
+  if (config.prepare.chain) std::sort(plan.p0.begin(), plan.p0.end());
+  check_run_lengths(plan, max_strain);
   // Servo settings are checked here, before anything is written.
   try {
     validate(prepare_model(plan, plan.p0.front()).servo);
@@ -1138,7 +1163,7 @@ Plan make_plan(Config config_in, const Options& options) {
       if (sm.servo.enabled) validate(sm.servo);
     }
   } catch (const std::invalid_argument& e) {
-    throw ConfigError(src + ": " + e.what());
+    throw ConfigError(config.source + ": " + e.what());
   }
   const int total = options.threads > 0 ? options.threads : available_cpus();
   plan.job_threads = std::max(1, total / std::max(1, config.parallel));
