@@ -1274,6 +1274,128 @@ void run_parallel(std::size_t n, int workers, Fn&& fn) {
   for (std::thread& t : pool) t.join();
 }
 
+// This process's share of a campaign (run_campaign): the selected preparations, then the selected
+// tests, `parallel` at once, with their summaries and the failures and stops counted.
+class Campaign {
+ public:
+  Campaign(const Plan& plan, Log& log, const std::vector<char>& run_prep, const std::vector<char>& run_test)
+      : plan_(plan), log_(log), run_prep_(run_prep), run_test_(run_test), runner_(plan, log), prep_(plan.p0.size()),
+        tests_(plan.config.tests.size()), prepared_(plan.p0.size(), 0) {}
+
+  /// The preparations; chained ones run in order of p0, each after the one it starts from.
+  void prepare_samples();
+  /// The tests, each on its sample (prepared here or found in the directory).
+  void shear_tests();
+  /// index.csv and samples.csv: what this process did, and for the rest what the directory holds
+  /// (other tasks' finished samples and tests), merged under a lock.
+  void write_indices();
+  int failures() const { return failures_; }
+  /// 0 done, 1 a job failed, 3 stopped (a signal or --stop-after).
+  int exit_code() const { return failures_ ? 1 : interrupted_ ? 3 : 0; }
+
+ private:
+  void failed(const std::string& what, const std::exception& e);
+  void prepare_sample(std::size_t k);
+  void shear_test(std::size_t k);
+
+  const Plan& plan_;
+  Log& log_;
+  const std::vector<char>& run_prep_;
+  const std::vector<char>& run_test_;
+  Runner runner_;
+  std::vector<Summary> prep_, tests_;
+  std::vector<char> prepared_;
+  int failures_ = 0, interrupted_ = 0;
+  std::mutex failure_mutex_;
+};
+
+// A job that threw: a stop (Interrupted) or a failure, counted, with its line.
+void Campaign::failed(const std::string& what, const std::exception& e) {
+  std::lock_guard lock(failure_mutex_);
+  if (dynamic_cast<const Interrupted*>(&e)) {
+    ++interrupted_;
+    log_.line(std::string(e.what()) + "; continue with --resume");
+    return;
+  }
+  ++failures_;
+  log_.line("triaxial: " + what + ": " + e.what());
+}
+
+void Campaign::prepare_samples() {
+  run_parallel(plan_.p0.size(), plan_.config.prepare.chain ? 1 : plan_.config.parallel, [&](std::size_t k) { prepare_sample(k); });
+}
+
+void Campaign::prepare_sample(std::size_t k) {
+  const std::string name = "prepare-" + p0_tag(plan_.p0[k]);
+  if (!run_prep_[k]) return;
+  if (stop_requested()) {
+    prep_[k].name = name;
+    prep_[k].status = "interrupted";
+    return;
+  }
+  try {
+    // A chained preparation needs the lower sample: prepared by an earlier task, or here.
+    if (const double from = plan_.chained_from(plan_.p0[k]); from > 0.0 && !runner_.ensure_sample(from)) {
+      prep_[k].name = name;
+      prep_[k].status = "skipped (sample-" + p0_tag(from) + " failed)";
+      return;
+    }
+    prepared_[k] = runner_.prepare(plan_.p0[k], prep_[k]);
+  } catch (const std::exception& e) {
+    prep_[k].name = name;
+    prep_[k].status = dynamic_cast<const Interrupted*>(&e) ? "interrupted" : "failed";
+    failed(name, e);
+  }
+}
+
+void Campaign::shear_tests() {
+  run_parallel(plan_.config.tests.size(), plan_.config.parallel, [&](std::size_t k) { shear_test(k); });
+}
+
+void Campaign::shear_test(std::size_t k) {
+  const TestSpec& t = plan_.config.tests[k];
+  tests_[k].name = t.name;
+  if (!run_test_[k]) return;
+  if (stop_requested()) {
+    tests_[k].status = "interrupted";
+    std::lock_guard lock(failure_mutex_);
+    ++interrupted_;
+    return;
+  }
+  const std::size_t sample = std::find(plan_.p0.begin(), plan_.p0.end(), t.p0) - plan_.p0.begin();
+  if (run_prep_[sample] && !prepared_[sample]) {  // its preparation failed in this process
+    tests_[k].status = "skipped (sample failed)";
+    return;
+  }
+  try {
+    if (!runner_.ensure_sample(t.p0)) {
+      tests_[k].status = "skipped (sample failed)";
+      return;
+    }
+    runner_.shear(t, tests_[k]);
+  } catch (const std::exception& e) {
+    tests_[k].status = dynamic_cast<const Interrupted*>(&e) ? "interrupted" : "failed";
+    failed(t.name, e);
+  }
+}
+
+void Campaign::write_indices() {
+  try {
+    FileLock index_lock;
+    index_lock.lock(plan_.out / ".locks" / "index.csv.lock", FileLock::Mode::exclusive);
+    for (std::size_t k = 0; k < prep_.size(); ++k)
+      if (!run_prep_[k] || prep_[k].status == "not run") {
+        if (fs::exists(runner_.sample_path(plan_.p0[k]))) prep_[k] = runner_.sample_summary(plan_.p0[k]);
+        else prep_[k].name = "prepare-" + p0_tag(plan_.p0[k]);
+      }
+    for (std::size_t k = 0; k < tests_.size(); ++k)
+      if (!run_test_[k]) tests_[k] = runner_.test_summary_on_disk(plan_.config.tests[k]);
+    write_index(plan_, prep_, tests_);
+  } catch (const std::exception& e) {
+    failed("index.csv", e);
+  }
+}
+
 }  // namespace
 
 // `triaxial analyze|study|localization ...`: runs the Python script <command>.py with the remaining arguments;
@@ -1500,11 +1622,8 @@ static int claim_directory(const Plan& plan, const Options& options, bool select
   return 0;
 }
 
-// Runs the selected preparations and tests (all of a whole run) and writes the campaign's index.
-// Returns the exit code: 0 done, 1 a job failed, 3 stopped (a signal or --stop-after).
-static int run_campaign(const Plan& plan, const Options& options, const std::vector<char>& run_prep,
-                        const std::vector<char>& run_test, std::ostream& out) {
-  Log log(out, options.progress);
+// The first lines of a run: what runs where, and the warnings that concern every stage.
+static void log_campaign_start(Log& log, const Plan& plan, const Options& options) {
   log.line("sandcell triaxial: " + plan.config.source + " -> " + plan.out.string() + ": " +
            std::to_string(plan.config.tests.size()) + " test(s), " + std::to_string(plan.p0.size()) + " sample(s), " +
            std::to_string(plan.config.parallel) + " at once x " + std::to_string(plan.job_threads) + " thread(s)");
@@ -1519,88 +1638,21 @@ static int run_campaign(const Plan& plan, const Options& options, const std::vec
   if (plan.config.prepare.dt_fraction > 0.5)
     log.line("warning: prepare.dt_fraction = " + num(plan.config.prepare.dt_fraction) +
              " > 0.5 of the Rayleigh time: contact collisions resolved by few steps");
-  Runner runner(plan, log);
-  std::vector<Summary> prep(plan.p0.size()), tests(plan.config.tests.size());
-  std::vector<char> prepared(plan.p0.size(), 0);
-  int failures = 0, interrupted = 0;
-  std::mutex failure_mutex;
-  const auto failed = [&](const std::string& what, const std::exception& e) {
-    std::lock_guard lock(failure_mutex);
-    if (dynamic_cast<const Interrupted*>(&e)) {
-      ++interrupted;
-      log.line(std::string(e.what()) + "; continue with --resume");
-      return;
-    }
-    ++failures;
-    log.line("triaxial: " + what + ": " + e.what());
-  };
-  // Chained preparations run in order of p0, each after the one it starts from.
-  run_parallel(plan.p0.size(), plan.config.prepare.chain ? 1 : plan.config.parallel, [&](std::size_t k) {
-    const std::string name = "prepare-" + p0_tag(plan.p0[k]);
-    if (!run_prep[k]) return;
-    if (stop_requested()) {
-      prep[k].name = name;
-      prep[k].status = "interrupted";
-      return;
-    }
-    try {
-      // A chained preparation needs the lower sample: prepared by an earlier task, or here.
-      if (const double from = plan.chained_from(plan.p0[k]); from > 0.0 && !runner.ensure_sample(from)) {
-        prep[k].name = name;
-        prep[k].status = "skipped (sample-" + p0_tag(from) + " failed)";
-        return;
-      }
-      prepared[k] = runner.prepare(plan.p0[k], prep[k]);
-    } catch (const std::exception& e) {
-      prep[k].name = name;
-      prep[k].status = dynamic_cast<const Interrupted*>(&e) ? "interrupted" : "failed";
-      failed(name, e);
-    }
-  });
-  run_parallel(plan.config.tests.size(), plan.config.parallel, [&](std::size_t k) {
-    const TestSpec& t = plan.config.tests[k];
-    tests[k].name = t.name;
-    if (!run_test[k]) return;
-    if (stop_requested()) {
-      tests[k].status = "interrupted";
-      std::lock_guard lock(failure_mutex);
-      ++interrupted;
-      return;
-    }
-    const std::size_t sample = std::find(plan.p0.begin(), plan.p0.end(), t.p0) - plan.p0.begin();
-    if (run_prep[sample] && !prepared[sample]) {  // its preparation failed in this process
-      tests[k].status = "skipped (sample failed)";
-      return;
-    }
-    try {
-      if (!runner.ensure_sample(t.p0)) {
-        tests[k].status = "skipped (sample failed)";
-        return;
-      }
-      runner.shear(t, tests[k]);
-    } catch (const std::exception& e) {
-      tests[k].status = dynamic_cast<const Interrupted*>(&e) ? "interrupted" : "failed";
-      failed(t.name, e);
-    }
-  });
-  // index.csv and samples.csv cover the whole campaign: what this process did, and for the rest
-  // what the directory holds (other tasks' finished samples and tests), merged under a lock.
-  try {
-    FileLock index_lock;
-    index_lock.lock(plan.out / ".locks" / "index.csv.lock", FileLock::Mode::exclusive);
-    for (std::size_t k = 0; k < prep.size(); ++k)
-      if (!run_prep[k] || prep[k].status == "not run") {
-        if (fs::exists(runner.sample_path(plan.p0[k]))) prep[k] = runner.sample_summary(plan.p0[k]);
-        else prep[k].name = "prepare-" + p0_tag(plan.p0[k]);
-      }
-    for (std::size_t k = 0; k < tests.size(); ++k)
-      if (!run_test[k]) tests[k] = runner.test_summary_on_disk(plan.config.tests[k]);
-    write_index(plan, prep, tests);
-  } catch (const std::exception& e) {
-    failed("index.csv", e);
-  }
+}
+
+// Runs the selected preparations and tests (all of a whole run) and writes the campaign's index.
+// Returns the exit code: 0 done, 1 a job failed, 3 stopped (a signal or --stop-after).
+static int run_campaign(const Plan& plan, const Options& options, const std::vector<char>& run_prep,
+                        const std::vector<char>& run_test, std::ostream& out) {
+  Log log(out, options.progress);
+  log_campaign_start(log, plan, options);
+  Campaign campaign(plan, log, run_prep, run_test);
+  campaign.prepare_samples();
+  campaign.shear_tests();
+  campaign.write_indices();
+  const int failures = campaign.failures();
   log.line("results: " + (plan.out / "index.csv").string() + (failures ? " (" + std::to_string(failures) + " failed)" : ""));
-  return failures ? 1 : interrupted ? 3 : 0;
+  return campaign.exit_code();
 }
 
 // The command line of a run: the options the jobs see, and the flags that end the process early.
