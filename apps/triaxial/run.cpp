@@ -1454,6 +1454,26 @@ static Plan plan_from_file(const std::string& path, const Options& options) {
   return make_plan(parse_config(buffer.str(), path), options);
 }
 
+// The values of --time and --partition that go into the scripts. Returns 0, or 2 after a one-line message.
+static int check_slurm_options(const SlurmCampaign& c, std::ostream& err) {
+  const auto time_ok = [](const std::string& t) {
+    int d = 0, h = 0, m = 0, sec = 0;
+    char tail = 0;
+    return (std::sscanf(t.c_str(), "%d-%d:%d:%d%c", &d, &h, &m, &sec, &tail) == 4 ||
+            std::sscanf(t.c_str(), "%d:%d:%d%c", &h, &m, &sec, &tail) == 3) &&
+           d >= 0 && h >= 0 && m >= 0 && m < 60 && sec >= 0 && sec < 60;
+  };
+  if (!time_ok(c.time)) {
+    err << "triaxial slurm: --time = " << c.time << ": allowed: HH:MM:SS or D-HH:MM:SS\n";
+    return 2;
+  }
+  if (c.partition.find_first_of(" \t\n'\"$`\\") != std::string::npos) {
+    err << "triaxial slurm: --partition = " << c.partition << ": allowed: a partition name (no spaces or quotes)\n";
+    return 2;
+  }
+  return 0;
+}
+
 // `triaxial slurm CONFIG --out DIR ...`: the campaign as Slurm job arrays (slurm.hpp).
 static int slurm_main(int argc, const char* const* argv, std::ostream& out, std::ostream& err) {
   SlurmCampaign c;
@@ -1476,21 +1496,7 @@ static int slurm_main(int argc, const char* const* argv, std::ostream& out, std:
     err << "triaxial slurm: " << e.what() << " (see --help)\n";
     return 2;
   }
-  const auto time_ok = [](const std::string& t) {
-    int d = 0, h = 0, m = 0, sec = 0;
-    char tail = 0;
-    return (std::sscanf(t.c_str(), "%d-%d:%d:%d%c", &d, &h, &m, &sec, &tail) == 4 ||
-            std::sscanf(t.c_str(), "%d:%d:%d%c", &h, &m, &sec, &tail) == 3) &&
-           d >= 0 && h >= 0 && m >= 0 && m < 60 && sec >= 0 && sec < 60;
-  };
-  if (!time_ok(c.time)) {
-    err << "triaxial slurm: --time = " << c.time << ": allowed: HH:MM:SS or D-HH:MM:SS\n";
-    return 2;
-  }
-  if (c.partition.find_first_of(" \t\n'\"$`\\") != std::string::npos) {
-    err << "triaxial slurm: --partition = " << c.partition << ": allowed: a partition name (no spaces or quotes)\n";
-    return 2;
-  }
+  if (const int code = check_slurm_options(c, err); code != 0) return code;
   Plan plan;
   std::string text;
   try {
