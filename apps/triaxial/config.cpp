@@ -208,18 +208,21 @@ const char* path_name(ShearPath path) {
   return "?";
 }
 
-Config parse_config(const std::string& text, const std::string& source) {
-  Config c;
-  c.text = text;
-  c.source = source;
-  toml::table root;
+namespace {
+
+// The document, or a ConfigError naming the line and column of a syntax error.
+toml::table parse_toml(const std::string& text, const std::string& source) {
   try {
-    root = toml::parse(text, source);
+    return toml::parse(text, source);
   } catch (const toml::parse_error& e) {
     const auto& where = e.source().begin;
     throw ConfigError(source + ":" + std::to_string(where.line) + ":" + std::to_string(where.column) +
                       ": TOML syntax error: " + std::string(e.description()));
   }
+}
+
+// Every top-level key must be one of the known tables.
+void check_sections(const toml::table& root, const std::string& source) {
   static const char* const sections[] = {"sample", "material", "contact", "time", "prepare", "shear", "tests", "output"};
   for (const auto& [key, node] : root) {
     bool known = false;
@@ -228,195 +231,232 @@ Config parse_config(const std::string& text, const std::string& source) {
       throw ConfigError(source + ": [" + std::string(key.str()) + "]: " + (known ? "must be a table" : "unknown section") +
                         "; allowed sections: [sample] [material] [contact] [time] [prepare] [shear] [tests] [output]");
   }
-  const auto table = [&](const char* name) { return root.get_as<toml::table>(name); };
+}
 
-  {
-    Section s(table("sample"), "sample", source);
-    GenerationSettings& g = c.sample.generation;
-    g.count = 2000;
-    g.sizes.d_min = 5.0e-3;
-    g.sizes.d_max = 7.5e-3;
-    s.string("file", c.sample.packing_file);
-    s.integer("count", g.count, 2, 10'000'000, "must be an integer in [2, 1e7]");
-    s.choice("distribution", g.sizes.kind,
-             {{"uniform", SizeDistribution::Kind::uniform}, {"gradation", SizeDistribution::Kind::gradation}});
-    s.positive("d_min", g.sizes.d_min, "m");
-    s.positive("d_max", g.sizes.d_max, "m");
-    if (const toml::node* node = s.get("gradation")) {
-      const toml::array* rows = node->as_array();
-      if (!rows) s.fail("gradation", Section::describe(*node), "expected an array of [diameter m, percent passing] rows");
-      for (std::size_t k = 0; k < rows->size(); ++k) {
-        const toml::array* row = rows->get(k)->as_array();
-        const auto value = [&](std::size_t q) -> std::optional<double> {
-          if (!row || row->size() != 2) return std::nullopt;
-          if (auto f = row->get(q)->value_exact<double>()) return *f;
-          if (auto i = row->get(q)->value_exact<std::int64_t>()) return static_cast<double>(*i);
-          return std::nullopt;
-        };
-        const auto d = value(0), pct = value(1);
-        if (!d || !pct)
-          s.fail("gradation[" + std::to_string(k) + "]", Section::describe(*rows->get(k)),
-                 "expected [diameter m, percent passing], two numbers");
-        g.sizes.table.emplace_back(*d, *pct);
-      }
+// The reader of table `name` (absent: every key keeps its default).
+Section section(const toml::table& root, const char* name, const std::string& source) {
+  return Section(root.get_as<toml::table>(name), name, source);
+}
+
+// sample.gradation: rows of [diameter m, percent passing].
+void parse_gradation(Section& s, SizeDistribution& sizes) {
+  const toml::node* node = s.get("gradation");
+  if (!node) return;
+  const toml::array* rows = node->as_array();
+  if (!rows) s.fail("gradation", Section::describe(*node), "expected an array of [diameter m, percent passing] rows");
+  for (std::size_t k = 0; k < rows->size(); ++k) {
+    const toml::array* row = rows->get(k)->as_array();
+    const auto value = [&](std::size_t q) -> std::optional<double> {
+      if (!row || row->size() != 2) return std::nullopt;
+      if (auto f = row->get(q)->value_exact<double>()) return *f;
+      if (auto i = row->get(q)->value_exact<std::int64_t>()) return static_cast<double>(*i);
+      return std::nullopt;
+    };
+    const auto d = value(0), pct = value(1);
+    if (!d || !pct)
+      s.fail("gradation[" + std::to_string(k) + "]", Section::describe(*rows->get(k)),
+             "expected [diameter m, percent passing], two numbers");
+    sizes.table.emplace_back(*d, *pct);
+  }
+}
+
+// [sample]: a packing file, or the cloud to generate (count, sizes, solid fraction, seed).
+void parse_sample(const toml::table& root, const std::string& source, SampleConfig& sample) {
+  Section s = section(root, "sample", source);
+  GenerationSettings& g = sample.generation;
+  g.count = 2000;
+  g.sizes.d_min = 5.0e-3;
+  g.sizes.d_max = 7.5e-3;
+  s.string("file", sample.packing_file);
+  s.integer("count", g.count, 2, 10'000'000, "must be an integer in [2, 1e7]");
+  s.choice("distribution", g.sizes.kind,
+           {{"uniform", SizeDistribution::Kind::uniform}, {"gradation", SizeDistribution::Kind::gradation}});
+  s.positive("d_min", g.sizes.d_min, "m");
+  s.positive("d_max", g.sizes.d_max, "m");
+  parse_gradation(s, g.sizes);
+  s.number("solid_fraction", g.solid_fraction, 1e-6, 0.35, "must be in (0, 0.35] (random placement jams near 0.38)");
+  s.integer("seed", g.seed, 0, UINT64_MAX, "must be an integer >= 0");
+  s.check_unknown();
+  if (g.sizes.kind == SizeDistribution::Kind::gradation && g.sizes.table.empty())
+    s.fail("gradation", "(missing)", "required when distribution = \"gradation\"");
+  if (g.sizes.kind == SizeDistribution::Kind::uniform && !g.sizes.table.empty())
+    s.fail("gradation", "(" + std::to_string(g.sizes.table.size()) + " rows)",
+           "given with distribution = \"uniform\", which ignores it; allowed: distribution = \"gradation\", or no gradation");
+  if (sample.packing_file.empty()) {
+    try {
+      validate(g);
+    } catch (const std::invalid_argument& e) {
+      throw ConfigError(source + ": " + e.what());
     }
-    s.number("solid_fraction", g.solid_fraction, 1e-6, 0.35, "must be in (0, 0.35] (random placement jams near 0.38)");
-    s.integer("seed", g.seed, 0, UINT64_MAX, "must be an integer >= 0");
-    s.check_unknown();
-    if (g.sizes.kind == SizeDistribution::Kind::gradation && g.sizes.table.empty())
-      s.fail("gradation", "(missing)", "required when distribution = \"gradation\"");
-    if (g.sizes.kind == SizeDistribution::Kind::uniform && !g.sizes.table.empty())
-      s.fail("gradation", "(" + std::to_string(g.sizes.table.size()) + " rows)",
-             "given with distribution = \"uniform\", which ignores it; allowed: distribution = \"gradation\", or no gradation");
-    if (c.sample.packing_file.empty()) {
-      try {
-        validate(g);
-      } catch (const std::invalid_argument& e) {
-        throw ConfigError(source + ": " + e.what());
+  }
+}
+
+// [material]: the spheres' material (restored for shearing after the preparation's friction).
+void parse_material(const toml::table& root, const std::string& source, Material& m) {
+  Section s = section(root, "material", source);
+  s.positive("density", m.density, "kg/m^3");
+  s.positive("young", m.young, "Pa");
+  s.number("poisson", m.poisson, -0.999, 0.499, "must be in (-1, 0.5)");
+  s.number("restitution", m.restitution, 1e-6, 1.0, "must be in (0, 1]");
+  s.number("friction", m.friction, 0.0, 10.0, "must be in [0, 10]");
+  s.number("rolling_friction", m.rolling_friction, 0.0, 10.0, "must be in [0, 10]");
+  s.check_unknown();
+}
+
+// [contact]: the contact models and the neighbour list's skin and sorting.
+void parse_contact(const toml::table& root, const std::string& source, ContactSettings& k) {
+  Section s = section(root, "contact", source);
+  k.skin = 0.0;
+  k.sort_interval = 1000;
+  s.choice("tangential", k.tangential,
+           {{"history", TangentialModel::history}, {"incremental", TangentialModel::incremental}});
+  s.choice("rolling", k.rolling,
+           {{"epsd2", RollingModel::epsd2}, {"epsd", RollingModel::epsd}, {"cdt", RollingModel::cdt},
+            {"none", RollingModel::none}});
+  s.number("rolling_damping", k.rolling_damping, 0.0, 10.0, "must be in [0, 10]");
+  s.number("skin", k.skin, 0.0, 1.0, "must be in [0, 1] m (0: 0.1 x the smallest diameter)");
+  s.integer("sort_interval", k.sort_interval, 0, 1'000'000'000, "must be an integer >= 0 steps (0: never)");
+  s.boolean("liggghts_compat", k.liggghts_compat);
+  s.check_unknown();
+}
+
+// [time]: the time step as a fraction of the Rayleigh time.
+void parse_time(const toml::table& root, const std::string& source, double& dt_fraction) {
+  Section s = section(root, "time", source);
+  // Above one Rayleigh time an explicit step through a dense Hertzian packing is unstable
+  // (the contact period at overlaps of ~1e-3 R is about 1-3 Rayleigh times).
+  s.number("dt_fraction", dt_fraction, 1e-6, 1.0, "must be in (0, 1] (fraction of the Rayleigh time; stability limit 1)");
+  s.check_unknown();
+}
+
+// [prepare]: the isotropic compression to p0 (friction, servo, convergence, chaining).
+void parse_prepare(const toml::table& root, const std::string& source, PrepareConfig& p) {
+  Section s = section(root, "prepare", source);
+  s.number("friction", p.friction, 0.0, 10.0, "must be in [0, 10]");
+  s.number("rolling_friction", p.rolling_friction, 0.0, 10.0, "must be in [0, 10]");
+  s.number("gain", p.gain, 0.0, 1e9, "must be >= 0 1/s (0: derived)");
+  s.positive("max_rate", p.max_rate, "1/s");
+  s.number("tolerance", p.tolerance, 1e-9, 0.5, "must be in (0, 0.5]");
+  s.number("unbalanced", p.unbalanced, 1e-12, 1.0, "must be in (0, 1]");
+  s.integer("check_interval", p.check_interval, 1, 1'000'000'000, "must be an integer >= 1 step");
+  s.integer("max_steps", p.max_steps, 1, UINT64_MAX, "must be an integer >= 1 step");
+  s.boolean("chain", p.chain);
+  s.number("dt_fraction", p.dt_fraction, 1e-6, 1.0, "must be in (0, 1] (fraction of the Rayleigh time; default time.dt_fraction)");
+  s.check_unknown();
+}
+
+// [shear]: the axial rate (or inertial number), the lateral servo, the stop tests and the strain path.
+void parse_shear(const toml::table& root, const std::string& source, ShearConfig& h) {
+  Section s = section(root, "shear", source);
+  s.positive("strain_rate", h.strain_rate, "1/s");
+  // Above I ~ 0.1 dense granular flow is inertial (GDR MiDi 2004): no element test.
+  s.number("inertial_number", h.inertial_number, std::nextafter(0.0, 1.0), 0.1,
+           "must be in (0, 0.1] (eps_dot_1 d50 sqrt(rho/p); quasi-static tests: <= 3e-3)");
+  s.number("ramp_strain", h.ramp_strain, 0.0, 1.0, "must be in [0, 1] (axial strain of the rate ramp; 0: none)");
+  s.number("gain", h.gain, 0.0, 1e9, "must be >= 0 1/s (0: derived)");
+  s.number("integral_time", h.integral_time, 0.0, 1e9, "must be >= 0 s (0: derived)");
+  s.number("max_rate", h.max_rate, 0.0, 1e9, "must be >= 0 1/s (0: 10 x the axial rate at p0)");
+  s.integer("servo_interval", h.servo_interval, 1, 1'000'000, "must be an integer in [1, 1e6] steps");
+  s.number("max_axial_strain", h.max_axial_strain, 1e-9, 2.0, "must be in (0, 2] (logarithmic strain)");
+  s.boolean("stop_at_critical", h.stop_at_critical);
+  s.number("critical_window", h.critical_window, 1e-6, 1.0, "must be in (0, 1]");
+  s.number("critical_tolerance", h.critical_tolerance, 1e-9, 1.0, "must be in (0, 1]");
+  s.number("critical_tolerance_e", h.critical_tolerance_e, 1e-9, 1.0, "must be in (0, 1]");
+  const std::vector<double> rates = s.numbers("strain_rates", "three finite rates in 1/s");
+  if (!rates.empty()) {
+    if (rates.size() != 3) s.fail("strain_rates", std::to_string(rates.size()) + " values", "expected 3 rates (1/s)");
+    h.strain_rates = Vec3(rates[0], rates[1], rates[2]);
+  }
+  s.integer("steps", h.steps, 0, UINT64_MAX, "must be an integer >= 0");
+  s.check_unknown();
+}
+
+// Hertz is a small-overlap law. In a dense sample at mean stress p, a contact carries
+// f = 4 pi R^2 p / (phi Z) (p = phi Z f / (4 pi R^2) for equal spheres), so its overlap is
+// delta/R = (3 sqrt(2) pi p / (phi Z E*))^(2/3), E* = E / (2 (1 - nu^2)); phi = 0.6, Z = 6.
+// Beyond 0.1 of the radius (a loaded contact's overlap is a few times the mean) the law and
+// the measures built on it are meaningless: refuse, naming both keys.
+void check_contact_overlap(Section& s, const Material& mat, const std::vector<double>& p0) {
+  const double e_star = mat.young / (2.0 * (1.0 - mat.poisson * mat.poisson));
+  for (std::size_t k = 0; k < p0.size(); ++k) {
+    const double ratio = std::pow(3.0 * std::sqrt(2.0) * std::numbers::pi * p0[k] / (0.6 * 6.0 * e_star), 2.0 / 3.0);
+    if (ratio > 0.1)
+      s.fail("p0[" + std::to_string(k) + "]", num(p0[k]),
+             "with material.young = " + num(mat.young) + " Pa the mean contact overlap would be ~" + num(std::round(ratio * 100.0) / 100.0) +
+                 " of the radius (Hertz, dense sample), beyond the small-overlap contact law (allowed: < 0.1): "
+                 "raise material.young or lower p0");
+  }
+}
+
+// tests.path: the names, as paths.
+std::vector<ShearPath> parse_paths(Section& s, const std::vector<std::string>& names) {
+  std::vector<ShearPath> parsed;
+  for (std::size_t k = 0; k < names.size(); ++k) {
+    const std::string& n = names[k];
+    if (n == "constant_p") parsed.push_back(ShearPath::constant_p);
+    else if (n == "constant_sigma3") parsed.push_back(ShearPath::constant_sigma3);
+    else if (n == "strain") parsed.push_back(ShearPath::strain);
+    else s.fail("path[" + std::to_string(k) + "]", "\"" + n + "\"", "allowed: \"constant_p\" \"constant_sigma3\" \"strain\"");
+  }
+  return parsed;
+}
+
+// The campaign: p0 x path x b (one b for the strain path), in that order, each name once.
+std::vector<TestSpec> campaign(const std::vector<double>& p0, const std::vector<ShearPath>& paths, const std::vector<double>& b) {
+  std::vector<TestSpec> tests;
+  for (double p : p0)
+    for (ShearPath path : paths)
+      for (double bv : (path == ShearPath::strain ? std::vector<double>{0.0} : b)) {
+        TestSpec t;
+        t.path = path;
+        t.p0 = p;
+        t.b = bv;
+        char name[96];
+        if (path == ShearPath::strain) std::snprintf(name, sizeof name, "strain-p0_%gkPa", p / 1e3);
+        else std::snprintf(name, sizeof name, "%s-b%.2f-p0_%gkPa", path == ShearPath::constant_p ? "p" : "s3", bv, p / 1e3);
+        t.name = name;
+        bool duplicate = false;
+        for (const TestSpec& other : tests) duplicate = duplicate || other.name == t.name;
+        if (!duplicate) tests.push_back(t);
       }
-    }
-  }
-  {
-    Section s(table("material"), "material", source);
-    Material& m = c.material;
-    s.positive("density", m.density, "kg/m^3");
-    s.positive("young", m.young, "Pa");
-    s.number("poisson", m.poisson, -0.999, 0.499, "must be in (-1, 0.5)");
-    s.number("restitution", m.restitution, 1e-6, 1.0, "must be in (0, 1]");
-    s.number("friction", m.friction, 0.0, 10.0, "must be in [0, 10]");
-    s.number("rolling_friction", m.rolling_friction, 0.0, 10.0, "must be in [0, 10]");
-    s.check_unknown();
-  }
-  {
-    Section s(table("contact"), "contact", source);
-    ContactSettings& k = c.contact;
-    k.skin = 0.0;
-    k.sort_interval = 1000;
-    s.choice("tangential", k.tangential,
-             {{"history", TangentialModel::history}, {"incremental", TangentialModel::incremental}});
-    s.choice("rolling", k.rolling,
-             {{"epsd2", RollingModel::epsd2}, {"epsd", RollingModel::epsd}, {"cdt", RollingModel::cdt},
-              {"none", RollingModel::none}});
-    s.number("rolling_damping", k.rolling_damping, 0.0, 10.0, "must be in [0, 10]");
-    s.number("skin", k.skin, 0.0, 1.0, "must be in [0, 1] m (0: 0.1 x the smallest diameter)");
-    s.integer("sort_interval", k.sort_interval, 0, 1'000'000'000, "must be an integer >= 0 steps (0: never)");
-    s.boolean("liggghts_compat", k.liggghts_compat);
-    s.check_unknown();
-  }
-  {
-    Section s(table("time"), "time", source);
-    // Above one Rayleigh time an explicit step through a dense Hertzian packing is unstable
-    // (the contact period at overlaps of ~1e-3 R is about 1-3 Rayleigh times).
-    s.number("dt_fraction", c.dt_fraction, 1e-6, 1.0, "must be in (0, 1] (fraction of the Rayleigh time; stability limit 1)");
-    s.check_unknown();
-  }
-  {
-    Section s(table("prepare"), "prepare", source);
-    PrepareConfig& p = c.prepare;
-    s.number("friction", p.friction, 0.0, 10.0, "must be in [0, 10]");
-    s.number("rolling_friction", p.rolling_friction, 0.0, 10.0, "must be in [0, 10]");
-    s.number("gain", p.gain, 0.0, 1e9, "must be >= 0 1/s (0: derived)");
-    s.positive("max_rate", p.max_rate, "1/s");
-    s.number("tolerance", p.tolerance, 1e-9, 0.5, "must be in (0, 0.5]");
-    s.number("unbalanced", p.unbalanced, 1e-12, 1.0, "must be in (0, 1]");
-    s.integer("check_interval", p.check_interval, 1, 1'000'000'000, "must be an integer >= 1 step");
-    s.integer("max_steps", p.max_steps, 1, UINT64_MAX, "must be an integer >= 1 step");
-    s.boolean("chain", p.chain);
-    s.number("dt_fraction", p.dt_fraction, 1e-6, 1.0, "must be in (0, 1] (fraction of the Rayleigh time; default time.dt_fraction)");
-    s.check_unknown();
-  }
+  return tests;
+}
+
+// [tests]: p0, b, path and how many run at once; the material bounds p0 (check_contact_overlap).
+void parse_tests(const toml::table& root, const std::string& source, Config& c) {
+  Section s = section(root, "tests", source);
+  std::vector<double> p0 = s.numbers("p0", "each > 0 Pa");
+  std::vector<double> b = s.numbers("b", "each in [0, 1]");
   std::vector<std::string> path_names = {"constant_p"};
-  {
-    Section s(table("shear"), "shear", source);
-    ShearConfig& h = c.shear;
-    s.positive("strain_rate", h.strain_rate, "1/s");
-    // Above I ~ 0.1 dense granular flow is inertial (GDR MiDi 2004): no element test.
-    s.number("inertial_number", h.inertial_number, std::nextafter(0.0, 1.0), 0.1,
-             "must be in (0, 0.1] (eps_dot_1 d50 sqrt(rho/p); quasi-static tests: <= 3e-3)");
-    s.number("ramp_strain", h.ramp_strain, 0.0, 1.0, "must be in [0, 1] (axial strain of the rate ramp; 0: none)");
-    s.number("gain", h.gain, 0.0, 1e9, "must be >= 0 1/s (0: derived)");
-    s.number("integral_time", h.integral_time, 0.0, 1e9, "must be >= 0 s (0: derived)");
-    s.number("max_rate", h.max_rate, 0.0, 1e9, "must be >= 0 1/s (0: 10 x the axial rate at p0)");
-    s.integer("servo_interval", h.servo_interval, 1, 1'000'000, "must be an integer in [1, 1e6] steps");
-    s.number("max_axial_strain", h.max_axial_strain, 1e-9, 2.0, "must be in (0, 2] (logarithmic strain)");
-    s.boolean("stop_at_critical", h.stop_at_critical);
-    s.number("critical_window", h.critical_window, 1e-6, 1.0, "must be in (0, 1]");
-    s.number("critical_tolerance", h.critical_tolerance, 1e-9, 1.0, "must be in (0, 1]");
-    s.number("critical_tolerance_e", h.critical_tolerance_e, 1e-9, 1.0, "must be in (0, 1]");
-    const std::vector<double> rates = s.numbers("strain_rates", "three finite rates in 1/s");
-    if (!rates.empty()) {
-      if (rates.size() != 3) s.fail("strain_rates", std::to_string(rates.size()) + " values", "expected 3 rates (1/s)");
-      h.strain_rates = Vec3(rates[0], rates[1], rates[2]);
-    }
-    s.integer("steps", h.steps, 0, UINT64_MAX, "must be an integer >= 0");
-    s.check_unknown();
-  }
-  {
-    Section s(table("tests"), "tests", source);
-    std::vector<double> p0 = s.numbers("p0", "each > 0 Pa");
-    std::vector<double> b = s.numbers("b", "each in [0, 1]");
-    const std::vector<std::string> paths = s.strings("path");
-    if (!paths.empty()) path_names = paths;
-    s.integer("parallel", c.parallel, 1, 1024, "must be an integer in [1, 1024]");
-    s.check_unknown();
-    if (p0.empty()) p0 = {0.5e6};
-    if (b.empty()) b = {0.0};
-    for (std::size_t k = 0; k < p0.size(); ++k)
-      if (!(p0[k] > 0.0) || !std::isfinite(p0[k])) s.fail("p0[" + std::to_string(k) + "]", num(p0[k]), "must be > 0 Pa");
-    for (std::size_t k = 0; k < b.size(); ++k)
-      if (!(b[k] >= 0.0 && b[k] <= 1.0)) s.fail("b[" + std::to_string(k) + "]", num(b[k]), "must be in [0, 1]");
-    // Hertz is a small-overlap law. In a dense sample at mean stress p, a contact carries
-    // f = 4 pi R^2 p / (phi Z) (p = phi Z f / (4 pi R^2) for equal spheres), so its overlap is
-    // delta/R = (3 sqrt(2) pi p / (phi Z E*))^(2/3), E* = E / (2 (1 - nu^2)); phi = 0.6, Z = 6.
-    // Beyond 0.1 of the radius (a loaded contact's overlap is a few times the mean) the law and
-    // the measures built on it are meaningless: refuse, naming both keys.
-    {
-      const Material& mat = c.material;
-      const double e_star = mat.young / (2.0 * (1.0 - mat.poisson * mat.poisson));
-      for (std::size_t k = 0; k < p0.size(); ++k) {
-        const double ratio = std::pow(3.0 * std::sqrt(2.0) * std::numbers::pi * p0[k] / (0.6 * 6.0 * e_star), 2.0 / 3.0);
-        if (ratio > 0.1)
-          s.fail("p0[" + std::to_string(k) + "]", num(p0[k]),
-                 "with material.young = " + num(mat.young) + " Pa the mean contact overlap would be ~" + num(std::round(ratio * 100.0) / 100.0) +
-                     " of the radius (Hertz, dense sample), beyond the small-overlap contact law (allowed: < 0.1): "
-                     "raise material.young or lower p0");
-      }
-    }
-    std::vector<ShearPath> parsed;
-    for (std::size_t k = 0; k < path_names.size(); ++k) {
-      const std::string& n = path_names[k];
-      if (n == "constant_p") parsed.push_back(ShearPath::constant_p);
-      else if (n == "constant_sigma3") parsed.push_back(ShearPath::constant_sigma3);
-      else if (n == "strain") parsed.push_back(ShearPath::strain);
-      else s.fail("path[" + std::to_string(k) + "]", "\"" + n + "\"", "allowed: \"constant_p\" \"constant_sigma3\" \"strain\"");
-    }
-    for (double p : p0)
-      for (ShearPath path : parsed)
-        for (double bv : (path == ShearPath::strain ? std::vector<double>{0.0} : b)) {
-          TestSpec t;
-          t.path = path;
-          t.p0 = p;
-          t.b = bv;
-          char name[96];
-          if (path == ShearPath::strain) std::snprintf(name, sizeof name, "strain-p0_%gkPa", p / 1e3);
-          else std::snprintf(name, sizeof name, "%s-b%.2f-p0_%gkPa", path == ShearPath::constant_p ? "p" : "s3", bv, p / 1e3);
-          t.name = name;
-          bool duplicate = false;
-          for (const TestSpec& other : c.tests) duplicate = duplicate || other.name == t.name;
-          if (!duplicate) c.tests.push_back(t);
-        }
-  }
-  {
-    Section s(table("output"), "output", source);
-    OutputConfig& o = c.output;
-    s.integer("series_interval", o.series_interval, 1, 1'000'000'000, "must be an integer >= 1 step");
-    s.integer("snapshot_interval", o.snapshot_interval, 0, UINT64_MAX, "must be an integer >= 0 steps (0: stage ends only)");
-    s.integer("checkpoint_interval", o.checkpoint_interval, 0, UINT64_MAX, "must be an integer >= 0 steps (0: by time only)");
-    s.number("checkpoint_minutes", o.checkpoint_minutes, 0.0, 1e6, "must be >= 0 minutes (0: by steps only)");
-    s.integer("flush_interval", o.flush_interval, 1, 1'000'000, "must be an integer >= 1 row");
-    s.boolean("plot", o.plot);
-    s.check_unknown();
-  }
+  const std::vector<std::string> paths = s.strings("path");
+  if (!paths.empty()) path_names = paths;
+  s.integer("parallel", c.parallel, 1, 1024, "must be an integer in [1, 1024]");
+  s.check_unknown();
+  if (p0.empty()) p0 = {0.5e6};
+  if (b.empty()) b = {0.0};
+  for (std::size_t k = 0; k < p0.size(); ++k)
+    if (!(p0[k] > 0.0) || !std::isfinite(p0[k])) s.fail("p0[" + std::to_string(k) + "]", num(p0[k]), "must be > 0 Pa");
+  for (std::size_t k = 0; k < b.size(); ++k)
+    if (!(b[k] >= 0.0 && b[k] <= 1.0)) s.fail("b[" + std::to_string(k) + "]", num(b[k]), "must be in [0, 1]");
+  check_contact_overlap(s, c.material, p0);
+  c.tests = campaign(p0, parse_paths(s, path_names), b);
+}
+
+// [output]: the series, snapshot, checkpoint and flush intervals, and the plot.
+void parse_output(const toml::table& root, const std::string& source, OutputConfig& o) {
+  Section s = section(root, "output", source);
+  s.integer("series_interval", o.series_interval, 1, 1'000'000'000, "must be an integer >= 1 step");
+  s.integer("snapshot_interval", o.snapshot_interval, 0, UINT64_MAX, "must be an integer >= 0 steps (0: stage ends only)");
+  s.integer("checkpoint_interval", o.checkpoint_interval, 0, UINT64_MAX, "must be an integer >= 0 steps (0: by time only)");
+  s.number("checkpoint_minutes", o.checkpoint_minutes, 0.0, 1e6, "must be >= 0 minutes (0: by steps only)");
+  s.integer("flush_interval", o.flush_interval, 1, 1'000'000, "must be an integer >= 1 row");
+  s.boolean("plot", o.plot);
+  s.check_unknown();
+}
+
+// The [shear] keys that depend on the campaign's paths: exactly one axial rate for the stress
+// paths, steps and no ramp for the strain path, a ramp shorter than the test.
+void check_shear_for_tests(const Config& c, const std::string& source) {
   bool stress_path = false;
   for (const TestSpec& t : c.tests) stress_path = stress_path || t.path != ShearPath::strain;
   if (c.shear.strain_rate > 0.0 && c.shear.inertial_number > 0.0)
@@ -435,6 +475,26 @@ Config parse_config(const std::string& text, const std::string& source) {
   if (c.shear.ramp_strain >= c.shear.max_axial_strain)
     throw ConfigError(source + ": shear.ramp_strain = " + num(c.shear.ramp_strain) + ": must be below shear.max_axial_strain = " +
                       num(c.shear.max_axial_strain));
+}
+
+}  // namespace
+
+Config parse_config(const std::string& text, const std::string& source) {
+  Config c;
+  c.text = text;
+  c.source = source;
+  const toml::table root = parse_toml(text, source);
+  check_sections(root, source);
+  // Table by table, in this order: a config with several faults is refused for the first.
+  parse_sample(root, source, c.sample);
+  parse_material(root, source, c.material);
+  parse_contact(root, source, c.contact);
+  parse_time(root, source, c.dt_fraction);
+  parse_prepare(root, source, c.prepare);
+  parse_shear(root, source, c.shear);
+  parse_tests(root, source, c);
+  parse_output(root, source, c.output);
+  check_shear_for_tests(c, source);
   return c;
 }
 

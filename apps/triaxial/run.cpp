@@ -34,6 +34,7 @@
 #include <fstream>
 #include <mutex>
 #include <numbers>
+#include <optional>
 #include <ostream>
 #include <sstream>
 #include <thread>
@@ -447,12 +448,204 @@ Summary Runner::sample_summary(double p0) const {
   return summary;
 }
 
+// One sample's isotropic compression to p0 (Runner::prepare): from the cloud (or the packing
+// file), from the next lower p0's sample (prepare.chain) or, with --resume, from its checkpoint,
+// to the sample file that the tests on p0 start from.
+class PrepareRun {
+ public:
+  PrepareRun(const Plan& plan, Log& log, double p0, Summary& summary)
+      : plan_(plan), log_(log), p0_(p0), summary_(summary), name_(summary.name), pc_(plan.config.prepare),
+        o_(plan.config.output), ckpt_(plan.out / (name_ + ".checkpoint.h5")), series_(plan.out / (name_ + ".h5")),
+        from_(plan.chained_from(p0)) {}
+
+  /// Opens the preparation (its state and series file) and the world that steps it; a new one
+  /// gets its first row.
+  void open(const Runner& runner);
+  /// Steps until converged (prepare.tolerance, prepare.unbalanced). Throws SimulationError past
+  /// prepare.max_steps, Interrupted after a checkpoint when asked to stop.
+  void run();
+  /// The last snapshot, the sample file (the state and its measures), the summary and the last line.
+  void finish(const fs::path& sample);
+
+ private:
+  State resume();
+  State start_from_sample(const fs::path& sample);
+  State start_from_cloud(const Model& model);
+  void row(const Measures& m);
+  bool converged(std::uint64_t s);
+  void checkpoint_or_stop(std::uint64_t s);
+
+  const Plan& plan_;
+  Log& log_;
+  const double p0_;
+  Summary& summary_;
+  const std::string name_;       // "prepare-p0_...kPa"
+  const PrepareConfig& pc_;
+  const OutputConfig& o_;
+  const fs::path ckpt_, series_;  // the checkpoint, the series file
+  const double from_;             // the p0 of the sample it starts from (prepare.chain), else 0
+  Timer timer_;
+  std::optional<ResultsFile> results_;
+  bool resumed_ = false;
+  std::optional<World> world_;
+  MeasureOptions mo_;
+  Measures m_;                    // the last measured
+  std::uint64_t rows_ = 0;
+  std::uint64_t step0_ = 0;       // the step this process started stepping at
+  Clock::time_point t0_;
+};
+
+void PrepareRun::open(const Runner& runner) {
+  const Model model = prepare_model(plan_, p0_);
+  State state;
+  if (plan_.options.resume && fs::exists(ckpt_)) state = resume();
+  else if (from_ > 0.0) state = start_from_sample(runner.sample_path(from_));
+  else state = start_from_cloud(model);
+  if (from_ > 0.0) summary_.from = "sample-" + p0_tag(from_);
+  // A chained preparation continues a sample whose forces are in its state, as a test does.
+  const bool initial_forces = !resumed_ && from_ == 0.0;
+  world_.emplace(model, std::move(state), systems_for(model), ExecutorConfig{Backend::tbb, plan_.prepare_threads},
+                 initial_forces);
+  mo_.d50 = median_diameter(world_->state().particles);
+  mo_.density = plan_.config.material.density;
+  log_.line(name_ + ": isotropic compression to " + num(p0_ / 1e6) + " MPa from the " +
+            (summary_.from == "cloud" ? std::string(plan_.from_file ? "packing file" : "cloud") : summary_.from) + ", " +
+            std::to_string(world_->state().particles.size()) + " spheres, dt = " + num(model.dt) + " s, servo gain " +
+            num(model.servo.gain, "%.4g") + " 1/s, " +
+            std::to_string(plan_.prepare_threads) + " threads");
+  if (!resumed_) row(measure(world_->model(), world_->state(), world_->executor(), mo_));
+}
+
+// --resume: the checkpoint's state and wall time, the series file cut back to its step.
+State PrepareRun::resume() {
+  CheckpointExtra extra;
+  State state = read_checkpoint(ckpt_, &extra);
+  timer_.before = extra.doubles["wall_time"].at(0);
+  results_.emplace(ResultsFile::reopen(series_, state.clock.step));
+  resumed_ = true;
+  log_.line(name_ + ": resumed at step " + std::to_string(state.clock.step));
+  return state;
+}
+
+// prepare.chain: the laboratory sequence, the sample prepared at the next lower p0 compressed on to p0.
+State PrepareRun::start_from_sample(const fs::path& sample) {
+  State state = read_checkpoint(sample, nullptr);
+  state.clock = {};
+  state.cell.rate.setZero();
+  state.cell.servo_integral.setZero();  // servo state resets between stages
+  results_.emplace(ResultsFile::create(series_, plan_.config.text,
+                                       {{"job", name_}, {"stage", "prepare"}, {"from", "sample-" + p0_tag(from_)}}));
+  return state;
+}
+
+// The packing file's spheres, or the cloud generated from [sample] (the same seed: the same cloud).
+State PrepareRun::start_from_cloud(const Model& model) {
+  Packing packing = plan_.packing;
+  if (!plan_.from_file && plan_.config.sample.generation.count > 100'000)  // the placement takes a while
+    log_.line(name_ + ": placing " + std::to_string(plan_.config.sample.generation.count) + " spheres at random");
+  if (!plan_.from_file) packing = generate_packing(plan_.config.sample.generation);
+  State state = make_state(model, packing);
+  results_.emplace(ResultsFile::create(series_, plan_.config.text, {{"job", name_}, {"stage", "prepare"}}));
+  return state;
+}
+
+// A row of the series (flushed every output.flush_interval rows).
+void PrepareRun::row(const Measures& m) {
+  append_row(*results_, world_->state(), m, timer_.elapsed());
+  if (++rows_ % o_.flush_interval == 0) results_->flush();
+}
+
+void PrepareRun::run() {
+  t0_ = Clock::now();
+  step0_ = world_->state().clock.step;
+  for (;;) {
+    // Steps until the body below has something to do: one call for many steps is bitwise the
+    // same as one call per step, and faster (World::step_until).
+    world_->step_until(std::numeric_limits<std::uint64_t>::max(), [&](Cell&, const sandcell::Clock& clock) {
+      const std::uint64_t s = clock.step;
+      return s % o_.series_interval == 0 || s % pc_.check_interval == 0 || checkpoint_due(o_, s, timer_) ||
+             plan_.options.stop_due(s, step0_);
+    });
+    const std::uint64_t s = world_->state().clock.step;
+    const bool series_due = s % o_.series_interval == 0;
+    const bool check = s % pc_.check_interval == 0;
+    if (series_due || check) {
+      m_ = measure(world_->model(), world_->state(), world_->executor(), mo_);
+      check_finite(world_->state(), m_);
+      if (series_due) row(m_);
+      if (check && converged(s)) break;
+    }
+    checkpoint_or_stop(s);
+  }
+}
+
+// The check every prepare.check_interval steps, on the last measures: a progress line; true when
+// every axis is within prepare.tolerance of p0 and the unbalanced force ratio below
+// prepare.unbalanced; a SimulationError when not by prepare.max_steps.
+bool PrepareRun::converged(std::uint64_t s) {
+  double worst = 0.0;
+  for (int k = 0; k < 3; ++k) worst = std::max(worst, std::abs(m_.stress(k, k) - p0_) / p0_);
+  const double rate = double(s - step0_) / std::chrono::duration<double>(Clock::now() - t0_).count();
+  log_.progress(name_ + " step " + std::to_string(s) + "  p " + num(m_.inv.p / 1e6, "%.4f") + " MPa  e " +
+                    num(m_.void_ratio, "%.4f") + "  stress error " + num(100 * worst, "%.2f") + " %  unbalanced " +
+                    num(m_.unbalanced, "%.2e") + "  " + num(rate, "%.0f") + " steps/s",
+                plan_.config.parallel == 1);
+  if (worst < pc_.tolerance && m_.unbalanced < pc_.unbalanced) return true;
+  if (s >= pc_.max_steps)
+    throw SimulationError(name_ + ": not converged after prepare.max_steps = " + std::to_string(pc_.max_steps) +
+                          " steps: worst axis stress error " + num(100 * worst) + " % (tolerance " +
+                          num(100 * pc_.tolerance) + " %), unbalanced force ratio " + num(m_.unbalanced) +
+                          " (tolerance " + num(pc_.unbalanced) + ")");
+  return false;
+}
+
+// A checkpoint when one is due; on a stop request (--stop-after, a signal) a checkpoint, then
+// Interrupted.
+void PrepareRun::checkpoint_or_stop(std::uint64_t s) {
+  if (checkpoint_due(o_, s, timer_)) {
+    results_->flush();
+    save(ckpt_, world_->state(), {}, timer_);
+  }
+  if (plan_.options.stop_due(s, step0_)) {
+    results_->flush();
+    save(ckpt_, world_->state(), {}, timer_);
+    throw Interrupted(name_ + ": stopped at step " + std::to_string(s) + " (" + Options::stop_reason() + "), checkpoint written");
+  }
+}
+
+void PrepareRun::finish(const fs::path& sample) {
+  State& st = world_->state();
+  st.cell.length0 = st.cell.length;  // strains of the tests count from the prepared sample
+  results_->write_snapshot(st);
+  results_->close();
+  CheckpointExtra extra;
+  extra.doubles["p0"] = {p0_};
+  extra.doubles["e0"] = {m_.void_ratio};
+  extra.doubles["Z"] = {m_.z};
+  extra.doubles["Z_mech"] = {m_.z_mech};
+  extra.doubles["unbalanced"] = {m_.unbalanced};
+  extra.doubles["p"] = {m_.inv.p};
+  extra.strings["config"] = plan_.config.text;
+  save(sample, st, extra, timer_);
+  std::error_code ignore;
+  fs::remove(ckpt_, ignore);
+  summary_.e0 = m_.void_ratio;
+  summary_.z0 = m_.z;
+  summary_.z_mech = m_.z_mech;
+  summary_.unbalanced = m_.unbalanced;
+  summary_.final_p = m_.inv.p;
+  summary_.steps = st.clock.step;
+  summary_.wall = timer_.elapsed();
+  summary_.status = "done";
+  log_.line(name_ + ": done at step " + std::to_string(st.clock.step) + ": e0 = " + num(m_.void_ratio, "%.4f") +
+            ", Z = " + num(m_.z, "%.3f") + ", Z_mech = " + num(m_.z_mech, "%.3f") + ", p = " + num(m_.inv.p / 1e6, "%.4f") +
+            " MPa, unbalanced " + num(m_.unbalanced, "%.2e") + ", wall " + num(summary_.wall, "%.1f") + " s");
+}
+
 bool Runner::prepare(double p0, Summary& summary) {
   const std::string tag = p0_tag(p0);
   summary.name = "prepare-" + tag;
   const fs::path sample = sample_path(p0);
-  const fs::path ckpt = plan_.out / ("prepare-" + tag + ".checkpoint.h5");
-  const fs::path series = plan_.out / ("prepare-" + tag + ".h5");
   // One process prepares a sample at a time; another task that needs it waits here, then finds it.
   FileLock job;
   job.lock(plan_.out / ".locks" / ("prepare-" + tag + ".lock"), FileLock::Mode::exclusive);
@@ -460,123 +653,10 @@ bool Runner::prepare(double p0, Summary& summary) {
     summary = sample_summary(p0);
     return true;
   }
-  const Model model = prepare_model(plan_, p0);
-  const PrepareConfig& pc = plan_.config.prepare;
-  Timer timer;
-  State state;
-  std::optional<ResultsFile> results;
-  bool resumed = false;
-  if (plan_.options.resume && fs::exists(ckpt)) {
-    CheckpointExtra extra;
-    state = read_checkpoint(ckpt, &extra);
-    timer.before = extra.doubles["wall_time"].at(0);
-    results.emplace(ResultsFile::reopen(series, state.clock.step));
-    resumed = true;
-    log_.line(summary.name + ": resumed at step " + std::to_string(state.clock.step));
-  } else if (const double from = plan_.chained_from(p0); from > 0.0) {
-    // The laboratory sequence: the sample prepared at the next lower p0, compressed on to p0.
-    state = read_checkpoint(sample_path(from), nullptr);
-    state.clock = {};
-    state.cell.rate.setZero();
-    state.cell.servo_integral.setZero();  // servo state resets between stages
-    results.emplace(ResultsFile::create(series, plan_.config.text,
-                                        {{"job", summary.name}, {"stage", "prepare"}, {"from", "sample-" + p0_tag(from)}}));
-  } else {
-    Packing packing = plan_.packing;
-    if (!plan_.from_file && plan_.config.sample.generation.count > 100'000)  // the placement takes a while
-      log_.line(summary.name + ": placing " + std::to_string(plan_.config.sample.generation.count) + " spheres at random");
-    if (!plan_.from_file) packing = generate_packing(plan_.config.sample.generation);
-    state = make_state(model, packing);
-    results.emplace(ResultsFile::create(series, plan_.config.text, {{"job", summary.name}, {"stage", "prepare"}}));
-  }
-  if (const double from = plan_.chained_from(p0); from > 0.0) summary.from = "sample-" + p0_tag(from);
-  // A chained preparation continues a sample whose forces are in its state, as a test does.
-  const bool initial_forces = !resumed && plan_.chained_from(p0) == 0.0;
-  World world(model, std::move(state), systems_for(model), ExecutorConfig{Backend::tbb, plan_.prepare_threads}, initial_forces);
-  MeasureOptions mo;
-  mo.d50 = median_diameter(world.state().particles);
-  mo.density = plan_.config.material.density;
-  log_.line(summary.name + ": isotropic compression to " + num(p0 / 1e6) + " MPa from the " +
-            (summary.from == "cloud" ? std::string(plan_.from_file ? "packing file" : "cloud") : summary.from) + ", " +
-            std::to_string(world.state().particles.size()) + " spheres, dt = " + num(model.dt) + " s, servo gain " +
-            num(model.servo.gain, "%.4g") + " 1/s, " +
-            std::to_string(plan_.prepare_threads) + " threads");
-  std::uint64_t rows = 0;
-  const auto row = [&](const Measures& m) {
-    append_row(*results, world.state(), m, timer.elapsed());
-    if (++rows % plan_.config.output.flush_interval == 0) results->flush();
-  };
-  if (!resumed) row(measure(world.model(), world.state(), world.executor(), mo));
-  const auto t0 = Clock::now();
-  const std::uint64_t step0 = world.state().clock.step;
-  Measures m;
-  for (;;) {
-    // Steps until the body below has something to do: one call for many steps is bitwise the
-    // same as one call per step, and faster (World::step_until).
-    world.step_until(std::numeric_limits<std::uint64_t>::max(), [&](Cell&, const sandcell::Clock& clock) {
-      const std::uint64_t s = clock.step;
-      return s % plan_.config.output.series_interval == 0 || s % pc.check_interval == 0 ||
-             checkpoint_due(plan_.config.output, s, timer) || plan_.options.stop_due(s, step0);
-    });
-    const std::uint64_t s = world.state().clock.step;
-    const bool series_due = s % plan_.config.output.series_interval == 0;
-    const bool check = s % pc.check_interval == 0;
-    if (series_due || check) {
-      m = measure(world.model(), world.state(), world.executor(), mo);
-      check_finite(world.state(), m);
-      if (series_due) row(m);
-      if (check) {
-        double worst = 0.0;
-        for (int k = 0; k < 3; ++k) worst = std::max(worst, std::abs(m.stress(k, k) - p0) / p0);
-        const double rate = double(s - step0) / std::chrono::duration<double>(Clock::now() - t0).count();
-        log_.progress(summary.name + " step " + std::to_string(s) + "  p " + num(m.inv.p / 1e6, "%.4f") + " MPa  e " +
-                          num(m.void_ratio, "%.4f") + "  stress error " + num(100 * worst, "%.2f") + " %  unbalanced " +
-                          num(m.unbalanced, "%.2e") + "  " + num(rate, "%.0f") + " steps/s",
-                      single_job());
-        if (worst < pc.tolerance && m.unbalanced < pc.unbalanced) break;
-        if (s >= pc.max_steps)
-          throw SimulationError(summary.name + ": not converged after prepare.max_steps = " + std::to_string(pc.max_steps) +
-                                " steps: worst axis stress error " + num(100 * worst) + " % (tolerance " +
-                                num(100 * pc.tolerance) + " %), unbalanced force ratio " + num(m.unbalanced) +
-                                " (tolerance " + num(pc.unbalanced) + ")");
-      }
-    }
-    if (checkpoint_due(plan_.config.output, s, timer)) {
-      results->flush();
-      save(ckpt, world.state(), {}, timer);
-    }
-    if (plan_.options.stop_due(s, step0)) {
-      results->flush();
-      save(ckpt, world.state(), {}, timer);
-      throw Interrupted(summary.name + ": stopped at step " + std::to_string(s) + " (" + Options::stop_reason() + "), checkpoint written");
-    }
-  }
-  State& st = world.state();
-  st.cell.length0 = st.cell.length;  // strains of the tests count from the prepared sample
-  results->write_snapshot(st);
-  results->close();
-  CheckpointExtra extra;
-  extra.doubles["p0"] = {p0};
-  extra.doubles["e0"] = {m.void_ratio};
-  extra.doubles["Z"] = {m.z};
-  extra.doubles["Z_mech"] = {m.z_mech};
-  extra.doubles["unbalanced"] = {m.unbalanced};
-  extra.doubles["p"] = {m.inv.p};
-  extra.strings["config"] = plan_.config.text;
-  save(sample, st, extra, timer);
-  std::error_code ignore;
-  fs::remove(ckpt, ignore);
-  summary.e0 = m.void_ratio;
-  summary.z0 = m.z;
-  summary.z_mech = m.z_mech;
-  summary.unbalanced = m.unbalanced;
-  summary.final_p = m.inv.p;
-  summary.steps = st.clock.step;
-  summary.wall = timer.elapsed();
-  summary.status = "done";
-  log_.line(summary.name + ": done at step " + std::to_string(st.clock.step) + ": e0 = " + num(m.void_ratio, "%.4f") +
-            ", Z = " + num(m.z, "%.3f") + ", Z_mech = " + num(m.z_mech, "%.3f") + ", p = " + num(m.inv.p / 1e6, "%.4f") +
-            " MPa, unbalanced " + num(m.unbalanced, "%.2e") + ", wall " + num(summary.wall, "%.1f") + " s");
+  PrepareRun run(plan_, log_, p0, summary);
+  run.open(*this);
+  run.run();
+  run.finish(sample);
   return true;
 }
 
@@ -643,176 +723,265 @@ bool Runner::ensure_sample(double p0) {
   return prepare(p0, summary);
 }
 
+// One test's shearing stage (Runner::shear): from its prepared sample, or with --resume from its
+// checkpoint, to the finished results file, the checkpoint marked complete and the summary.
+class ShearRun {
+ public:
+  ShearRun(const Plan& plan, Log& log, const TestSpec& test, Summary& summary)
+      : plan_(plan), log_(log), test_(test), summary_(summary), h_(plan.config.shear), o_(plan.config.output),
+        ckpt_(plan.out / (test.name + ".checkpoint.h5")), path_(plan.out / (test.name + ".h5")),
+        max_strain_(plan.options.max_axial_strain > 0.0 ? plan.options.max_axial_strain : h_.max_axial_strain),
+        watch_(test.name, log) {}
+
+  /// Opens the test (its state and results file, from the sample or the checkpoint) and the world
+  /// that steps it; a new test gets its first row and snapshot. Returns false when the checkpoint
+  /// marks the test complete (an earlier run's): the summary is then that run's.
+  bool open(const Runner& runner, const fs::path& sample);
+  /// Steps to the end: the maximum axial strain (the steps of path "strain"), or critical state
+  /// with shear.stop_at_critical. Throws Interrupted after a checkpoint when asked to stop.
+  void run();
+  /// The last snapshot, the checkpoint marked complete, the summary and the job's last line.
+  void finish();
+  /// The PNG of q and eps_v (plot_triaxial.py); a missing python3/matplotlib is a warning.
+  void plot() const;
+
+ private:
+  void resume(const State& state, CheckpointExtra& extra);
+  State start_from_sample(const fs::path& sample);
+  void row();
+  CheckpointExtra extras() const;
+  static double axial_strain(const Cell& cell) { return -std::log(cell.length[0] / cell.length0[0]); }
+  bool finished(std::uint64_t s, double eps1) const {
+    return test_.path == ShearPath::strain ? s >= h_.steps : eps1 >= max_strain_;
+  }
+  bool progress_due() const {
+    return plan_.options.progress && std::chrono::duration<double>(Clock::now() - last_progress_).count() > 1.0;
+  }
+  bool event_due(std::uint64_t s, double eps1);
+  void check_critical(double eps1);
+  void checkpoint_or_stop(std::uint64_t s);
+  void report_progress(std::uint64_t s, double eps1);
+
+  const Plan& plan_;
+  Log& log_;
+  const TestSpec& test_;
+  Summary& summary_;
+  const ShearConfig& h_;
+  const OutputConfig& o_;
+  const fs::path ckpt_, path_;  // the checkpoint, the results file
+  const double max_strain_;     // shear.max_axial_strain, or --max-axial-strain
+  Timer timer_;
+  History history_;
+  AccuracyWatch watch_;
+  std::optional<ResultsFile> results_;
+  bool resumed_ = false;
+  std::optional<World> world_;
+  MeasureOptions mo_;
+  Measures m_;                  // the last row's
+  std::uint64_t rows_ = 0;
+  std::uint64_t step0_ = 0;     // the step this process started stepping at
+  Clock::time_point t0_, last_progress_;
+};
+
+bool ShearRun::open(const Runner& runner, const fs::path& sample) {
+  const Model model = shear_model(plan_, test_);
+  CheckpointExtra sample_extra;
+  read_checkpoint(sample, &sample_extra);
+  summary_.e0 = sample_extra.doubles["e0"].at(0);
+  summary_.z0 = sample_extra.doubles["Z"].at(0);
+  State state;
+  if (plan_.options.resume && fs::exists(ckpt_)) {
+    CheckpointExtra extra;
+    state = read_checkpoint(ckpt_, &extra);
+    timer_.before = extra.doubles["wall_time"].at(0);
+    if (extra.integers.count("complete") && extra.integers["complete"].at(0) == 1) {
+      summary_ = runner.test_summary(test_, state, extra);
+      return false;
+    }
+    resume(state, extra);
+  } else {
+    state = start_from_sample(sample);
+  }
+  world_.emplace(model, std::move(state), systems_for(model), ExecutorConfig{Backend::tbb, plan_.job_threads}, false);
+  mo_.d50 = median_diameter(world_->state().particles);
+  mo_.density = plan_.config.material.density;
+  log_.line(test_.name + ": " + path_name(test_.path) + (test_.path == ShearPath::strain ? "" : ", b = " + num(test_.b)) +
+            ", p0 = " + num(test_.p0 / 1e6) + " MPa, e0 = " + num(summary_.e0, "%.4f") + ", to axial strain " +
+            num(max_strain_) + ", servo gain " + num(model.servo.gain, "%.4g") + " 1/s, " +
+            std::to_string(plan_.job_threads) + " threads");
+  if (!resumed_) {
+    row();
+    results_->write_snapshot(world_->state());
+  }
+  return true;
+}
+
+// --resume: the series and the accuracy watch as checkpointed, the results file cut back to the
+// checkpoint's step.
+void ShearRun::resume(const State& state, CheckpointExtra& extra) {
+  history_.load(extra);
+  watch_.restore(extra.doubles["watch_worst"]);
+  results_.emplace(ResultsFile::reopen(path_, state.clock.step));
+  resumed_ = true;
+  log_.line(test_.name + ": resumed at step " + std::to_string(state.clock.step));
+}
+
+// A new test: the prepared sample with its clock, strains and servo state reset and the first
+// rates set; a new results file.
+State ShearRun::start_from_sample(const fs::path& sample) {
+  State state = read_checkpoint(sample, nullptr);
+  state.clock = {};
+  state.cell.length0 = state.cell.length;
+  state.cell.servo_integral.setZero();  // servo state resets between stages
+  if (test_.path == ShearPath::strain) state.cell.rate = -h_.strain_rates;
+  else state.cell.rate = Vec3(h_.ramp_strain > 0.0 ? 0.0 : -axial_rate(plan_, test_.p0), 0.0, 0.0);
+  results_.emplace(ResultsFile::create(path_, plan_.config.text,
+                                       {{"job", test_.name}, {"stage", "shear"}, {"path", path_name(test_.path)},
+                                        {"b", num(test_.b)}, {"p0", num(test_.p0)}}));
+  return state;
+}
+
+// A row of the series: measured, checked, appended (and flushed every output.flush_interval rows),
+// watched, and kept in the history.
+void ShearRun::row() {
+  m_ = measure(world_->model(), world_->state(), world_->executor(), mo_);
+  check_finite(world_->state(), m_);
+  append_row(*results_, world_->state(), m_, timer_.elapsed());
+  if (world_->state().clock.step > 0) watch_.check(m_, world_->state().clock.step);
+  history_.eps1.push_back(m_.strain[0]);
+  history_.p.push_back(m_.inv.p);
+  history_.q.push_back(m_.inv.q);
+  history_.e.push_back(m_.void_ratio);
+  if (++rows_ % o_.flush_interval == 0) results_->flush();
+}
+
+// What a checkpoint keeps besides the state: the history and the accuracy watch's worst values.
+CheckpointExtra ShearRun::extras() const {
+  CheckpointExtra x = history_.save();
+  x.doubles["watch_worst"] = watch_.worst_values();
+  return x;
+}
+
+// Whether the loop of run() has something to do after step s: the end, a row, a snapshot, a
+// checkpoint, a stop or a progress line.
+bool ShearRun::event_due(std::uint64_t s, double eps1) {
+  return finished(s, eps1) || s % o_.series_interval == 0 || (o_.snapshot_interval > 0 && s % o_.snapshot_interval == 0) ||
+         checkpoint_due(o_, s, timer_) || plan_.options.stop_due(s, step0_) || progress_due();
+}
+
+void ShearRun::run() {
+  t0_ = Clock::now();
+  step0_ = world_->state().clock.step;
+  last_progress_ = Clock::now();
+  for (;;) {
+    // Steps until the body below has something to do: one call for many steps is bitwise the
+    // same as one call per step, and faster (World::step_until).
+    world_->step_until(std::numeric_limits<std::uint64_t>::max(), [&](Cell& cell, const sandcell::Clock& clock) {
+      return event_due(clock.step, axial_strain(cell));
+    });
+    State& st = world_->state();
+    const std::uint64_t s = st.clock.step;
+    const double eps1 = axial_strain(st.cell);
+    const bool done = finished(s, eps1);
+    if (s % o_.series_interval == 0 || done) {
+      row();
+      if (h_.stop_at_critical) check_critical(eps1);
+    }
+    if (o_.snapshot_interval > 0 && s % o_.snapshot_interval == 0) results_->write_snapshot(st);
+    if (done || summary_.critical) break;
+    checkpoint_or_stop(s);
+    if (progress_due()) report_progress(s, eps1);
+  }
+}
+
+// shear.stop_at_critical: marks the summary (which ends the loop) when the history has reached
+// critical state (critical.hpp).
+void ShearRun::check_critical(double eps1) {
+  if (const CriticalCheck c = history_.critical(h_); c.reached) {
+    summary_.critical = true;
+    log_.line(test_.name + ": critical state at eps1 = " + num(100.0 * eps1, "%.2f") + " %: over the last " +
+              num(100.0 * h_.critical_window, "%g") + " % (" + std::to_string(c.rows) +
+              " rows) the fitted lines change eta by " + num(100.0 * c.change_eta, "%.2f") + " %, p by " +
+              num(100.0 * c.change_p, "%.2f") + " %, e by " + num(c.change_e, "%.4f"));
+  }
+}
+
+// A checkpoint when one is due; on a stop request (--stop-after, a signal) a checkpoint, then
+// Interrupted.
+void ShearRun::checkpoint_or_stop(std::uint64_t s) {
+  const State& st = world_->state();
+  if (checkpoint_due(o_, s, timer_)) {
+    results_->flush();
+    save(ckpt_, st, extras(), timer_);
+  }
+  if (plan_.options.stop_due(s, step0_)) {
+    results_->flush();
+    save(ckpt_, st, extras(), timer_);
+    throw Interrupted(test_.name + ": stopped at step " + std::to_string(s) + " (" + Options::stop_reason() + "), checkpoint written");
+  }
+}
+
+// The progress line (a terminal only): the last row's measures, the speed and the time left.
+void ShearRun::report_progress(std::uint64_t s, double eps1) {
+  last_progress_ = Clock::now();
+  const double speed = double(s - step0_) / std::chrono::duration<double>(Clock::now() - t0_).count();
+  const double rate = -world_->state().cell.rate[0];  // 1/s, the axial rate now
+  const double left = test_.path != ShearPath::strain ? (rate > 0.0 ? (max_strain_ - eps1) / (rate * world_->model().dt) / speed : 0.0)
+                                                      : double(h_.steps - s) / speed;
+  log_.progress(test_.name + " step " + std::to_string(s) + "  eps1 " + num(100 * eps1, "%.2f") + " %  p " +
+                    num(m_.inv.p / 1e6, "%.4f") + " MPa  q " + num(m_.inv.q / 1e6, "%.4f") + " MPa  e " +
+                    num(m_.void_ratio, "%.4f") + "  I " + num(m_.inertial_number, "%.1e") + "  unbal " +
+                    num(m_.unbalanced, "%.3f") + "  " + num(speed, "%.0f") + " steps/s  ETA " + num(left, "%.0f") + " s",
+                plan_.config.parallel == 1);
+}
+
+void ShearRun::finish() {
+  State& st = world_->state();
+  if (o_.snapshot_interval == 0 || st.clock.step % o_.snapshot_interval != 0) results_->write_snapshot(st);
+  results_->close();
+  CheckpointExtra extra = extras();
+  extra.integers["complete"] = {1};
+  save(ckpt_, st, extra, timer_);
+
+  const auto peak = std::max_element(history_.q.begin(), history_.q.end()) - history_.q.begin();
+  summary_.peak_eta = history_.q[peak] / history_.p[peak];
+  summary_.peak_strain = history_.eps1[peak];
+  summary_.final_eta = m_.inv.eta;
+  summary_.final_e = m_.void_ratio;
+  summary_.final_p = m_.inv.p;
+  summary_.final_strain = m_.strain[0];
+  summary_.steps = st.clock.step;
+  summary_.wall = timer_.elapsed();
+  summary_.status = summary_.critical ? "done (critical state)" : "done";
+  log_.line(test_.name + ": done at step " + std::to_string(st.clock.step) + ", eps1 = " + num(100 * m_.strain[0], "%.2f") +
+            " %: peak q/p = " + num(summary_.peak_eta, "%.4f") + " at eps1 = " + num(100 * summary_.peak_strain, "%.2f") +
+            " %, final q/p = " + num(m_.inv.eta, "%.4f") + ", p = " + num(m_.inv.p / 1e6, "%.4f") + " MPa, b = " +
+            num(m_.inv.b, "%.3f") + ", e = " + num(m_.void_ratio, "%.4f") + ", wall " + num(summary_.wall, "%.1f") + " s; " +
+            watch_.worst());
+}
+
+void ShearRun::plot() const {
+  // The plot is a convenience: a missing python3/matplotlib is a warning, not a failure.
+  const fs::path script = script_path("plot_triaxial.py");
+  const fs::path png = plan_.out / (test_.name + ".png");
+  if (!script.empty()) {
+    const std::string cmd = "'" + python() + "' '" + script.string() + "' '" + path_.string() + "' '" + png.string() + "' 2>&1";
+    if (std::system(cmd.c_str()) == 0) log_.line(test_.name + ": plot " + png.string());
+    else log_.line(test_.name + ": warning: no plot (needs python3 with h5py and matplotlib: " + cmd + ")");
+  }
+}
+
 void Runner::shear(const TestSpec& test, Summary& summary) {
   summary.name = test.name;
   FileLock job;
   if (!job.try_lock(plan_.out / ".locks" / (test.name + ".lock"), FileLock::Mode::exclusive))
     throw std::runtime_error("running in another process (" + FileLock::holder(plan_.out / ".locks" / (test.name + ".lock")) +
                              "); not started twice");
-  const fs::path ckpt = plan_.out / (test.name + ".checkpoint.h5");
-  const fs::path path = plan_.out / (test.name + ".h5");
-  const ShearConfig& h = plan_.config.shear;
-  const double max_strain = plan_.options.max_axial_strain > 0.0 ? plan_.options.max_axial_strain : h.max_axial_strain;
-  Model model = shear_model(plan_, test);
-  Timer timer;
-  History history;
-  std::vector<double> watch_saved;  // the accuracy watch's worst values, from a checkpoint
-  State state;
-  std::optional<ResultsFile> results;
-  bool resumed = false;
-  CheckpointExtra sample_extra;
-  read_checkpoint(sample_path(test.p0), &sample_extra);
-  summary.e0 = sample_extra.doubles["e0"].at(0);
-  summary.z0 = sample_extra.doubles["Z"].at(0);
-  if (plan_.options.resume && fs::exists(ckpt)) {
-    CheckpointExtra extra;
-    state = read_checkpoint(ckpt, &extra);
-    timer.before = extra.doubles["wall_time"].at(0);
-    if (extra.integers.count("complete") && extra.integers["complete"].at(0) == 1) {
-      summary = test_summary(test, state, extra);
-      return;
-    }
-    history.load(extra);
-    watch_saved = extra.doubles["watch_worst"];
-    results.emplace(ResultsFile::reopen(path, state.clock.step));
-    resumed = true;
-    log_.line(test.name + ": resumed at step " + std::to_string(state.clock.step));
-  } else {
-    state = read_checkpoint(sample_path(test.p0), nullptr);
-    state.clock = {};
-    state.cell.length0 = state.cell.length;
-    state.cell.servo_integral.setZero();  // servo state resets between stages
-    if (test.path == ShearPath::strain) state.cell.rate = -h.strain_rates;
-    else state.cell.rate = Vec3(h.ramp_strain > 0.0 ? 0.0 : -axial_rate(plan_, test.p0), 0.0, 0.0);
-    results.emplace(ResultsFile::create(path, plan_.config.text,
-                                        {{"job", test.name}, {"stage", "shear"}, {"path", path_name(test.path)},
-                                         {"b", num(test.b)}, {"p0", num(test.p0)}}));
-  }
-  World world(model, std::move(state), systems_for(model), ExecutorConfig{Backend::tbb, plan_.job_threads}, false);
-  MeasureOptions mo;
-  mo.d50 = median_diameter(world.state().particles);
-  mo.density = plan_.config.material.density;
-  log_.line(test.name + ": " + path_name(test.path) + (test.path == ShearPath::strain ? "" : ", b = " + num(test.b)) +
-            ", p0 = " + num(test.p0 / 1e6) + " MPa, e0 = " + num(summary.e0, "%.4f") + ", to axial strain " +
-            num(max_strain) + ", servo gain " + num(model.servo.gain, "%.4g") + " 1/s, " +
-            std::to_string(plan_.job_threads) + " threads");
-  std::uint64_t rows = 0;
-  Measures m;
-  AccuracyWatch watch(test.name, log_);
-  watch.restore(watch_saved);
-  const auto extras = [&] {
-    CheckpointExtra x = history.save();
-    x.doubles["watch_worst"] = watch.worst_values();
-    return x;
-  };
-  const auto row = [&]() {
-    m = measure(world.model(), world.state(), world.executor(), mo);
-    check_finite(world.state(), m);
-    append_row(*results, world.state(), m, timer.elapsed());
-    if (world.state().clock.step > 0) watch.check(m, world.state().clock.step);
-    history.eps1.push_back(m.strain[0]);
-    history.p.push_back(m.inv.p);
-    history.q.push_back(m.inv.q);
-    history.e.push_back(m.void_ratio);
-    if (++rows % plan_.config.output.flush_interval == 0) results->flush();
-  };
-  if (!resumed) {
-    row();
-    results->write_snapshot(world.state());
-  }
-  const auto t0 = Clock::now();
-  const std::uint64_t step0 = world.state().clock.step;
-  const OutputConfig& o = plan_.config.output;
-  auto last_progress = Clock::now();
-  const auto axial_strain = [](const Cell& cell) { return -std::log(cell.length[0] / cell.length0[0]); };
-  const auto finished = [&](std::uint64_t s, double eps1) {
-    return test.path == ShearPath::strain ? s >= h.steps : eps1 >= max_strain;
-  };
-  const auto progress_due = [&] {
-    return plan_.options.progress && std::chrono::duration<double>(Clock::now() - last_progress).count() > 1.0;
-  };
-  for (;;) {
-    // Steps until the body below has something to do: one call for many steps is bitwise the
-    // same as one call per step, and faster (World::step_until).
-    world.step_until(std::numeric_limits<std::uint64_t>::max(), [&](Cell& cell, const sandcell::Clock& clock) {
-      const std::uint64_t s = clock.step;
-      return finished(s, axial_strain(cell)) || s % o.series_interval == 0 ||
-             (o.snapshot_interval > 0 && s % o.snapshot_interval == 0) || checkpoint_due(o, s, timer) ||
-             plan_.options.stop_due(s, step0) || progress_due();
-    });
-    State& st = world.state();
-    const std::uint64_t s = st.clock.step;
-    const double eps1 = axial_strain(st.cell);
-    const bool done = finished(s, eps1);
-    if (s % o.series_interval == 0 || done) {
-      row();
-      if (h.stop_at_critical) {
-        if (const CriticalCheck c = history.critical(h); c.reached) {
-          summary.critical = true;
-          log_.line(test.name + ": critical state at eps1 = " + num(100.0 * eps1, "%.2f") + " %: over the last " +
-                    num(100.0 * h.critical_window, "%g") + " % (" + std::to_string(c.rows) +
-                    " rows) the fitted lines change eta by " + num(100.0 * c.change_eta, "%.2f") + " %, p by " +
-                    num(100.0 * c.change_p, "%.2f") + " %, e by " + num(c.change_e, "%.4f"));
-        }
-      }
-    }
-    if (o.snapshot_interval > 0 && s % o.snapshot_interval == 0) results->write_snapshot(st);
-    if (done || summary.critical) break;
-    if (checkpoint_due(o, s, timer)) {
-      results->flush();
-      save(ckpt, st, extras(), timer);
-    }
-    if (plan_.options.stop_due(s, step0)) {
-      results->flush();
-      save(ckpt, st, extras(), timer);
-      throw Interrupted(test.name + ": stopped at step " + std::to_string(s) + " (" + Options::stop_reason() + "), checkpoint written");
-    }
-    if (progress_due()) {
-      last_progress = Clock::now();
-      const double speed = double(s - step0) / std::chrono::duration<double>(Clock::now() - t0).count();
-      const double rate = -st.cell.rate[0];  // 1/s, the axial rate now
-      const double left = test.path != ShearPath::strain ? (rate > 0.0 ? (max_strain - eps1) / (rate * world.model().dt) / speed : 0.0)
-                                                         : double(h.steps - s) / speed;
-      log_.progress(test.name + " step " + std::to_string(s) + "  eps1 " + num(100 * eps1, "%.2f") + " %  p " +
-                        num(m.inv.p / 1e6, "%.4f") + " MPa  q " + num(m.inv.q / 1e6, "%.4f") + " MPa  e " +
-                        num(m.void_ratio, "%.4f") + "  I " + num(m.inertial_number, "%.1e") + "  unbal " +
-                        num(m.unbalanced, "%.3f") + "  " + num(speed, "%.0f") + " steps/s  ETA " + num(left, "%.0f") + " s",
-                    single_job());
-    }
-  }
-  State& st = world.state();
-  if (o.snapshot_interval == 0 || st.clock.step % o.snapshot_interval != 0) results->write_snapshot(st);
-  results->close();
-  CheckpointExtra extra = extras();
-  extra.integers["complete"] = {1};
-  save(ckpt, st, extra, timer);
-
-  const auto peak = std::max_element(history.q.begin(), history.q.end()) - history.q.begin();
-  summary.peak_eta = history.q[peak] / history.p[peak];
-  summary.peak_strain = history.eps1[peak];
-  summary.final_eta = m.inv.eta;
-  summary.final_e = m.void_ratio;
-  summary.final_p = m.inv.p;
-  summary.final_strain = m.strain[0];
-  summary.steps = st.clock.step;
-  summary.wall = timer.elapsed();
-  summary.status = summary.critical ? "done (critical state)" : "done";
-  log_.line(test.name + ": done at step " + std::to_string(st.clock.step) + ", eps1 = " + num(100 * m.strain[0], "%.2f") +
-            " %: peak q/p = " + num(summary.peak_eta, "%.4f") + " at eps1 = " + num(100 * summary.peak_strain, "%.2f") +
-            " %, final q/p = " + num(m.inv.eta, "%.4f") + ", p = " + num(m.inv.p / 1e6, "%.4f") + " MPa, b = " +
-            num(m.inv.b, "%.3f") + ", e = " + num(m.void_ratio, "%.4f") + ", wall " + num(summary.wall, "%.1f") + " s; " +
-            watch.worst());
-
-  if (plan_.config.output.plot) {
-    // The plot is a convenience: a missing python3/matplotlib is a warning, not a failure.
-    const fs::path script = script_path("plot_triaxial.py");
-    const fs::path png = plan_.out / (test.name + ".png");
-    if (!script.empty()) {
-      const std::string cmd = "'" + python() + "' '" + script.string() + "' '" + path.string() + "' '" + png.string() + "' 2>&1";
-      if (std::system(cmd.c_str()) == 0) log_.line(test.name + ": plot " + png.string());
-      else log_.line(test.name + ": warning: no plot (needs python3 with h5py and matplotlib: " + cmd + ")");
-    }
-  }
+  ShearRun run(plan_, log_, test, summary);
+  if (!run.open(*this, sample_path(test.p0))) return;  // complete in an earlier run
+  run.run();
+  run.finish();
+  if (plan_.config.output.plot) run.plot();
 }
 
 // ---- planning -----------------------------------------------------------------------------------
@@ -861,13 +1030,11 @@ std::string deep_overlap(const Packing& pk) {
   return "";
 }
 
-Plan make_plan(Config config_in, const Options& options) {
-  Plan plan;
-  plan.options = options;
-  plan.config = std::move(config_in);
-  const Config& config = plan.config;
-  const std::string& src = config.source;
-  const SampleConfig& sc = config.sample;
+// The sample's diameters: the packing file's (read into plan.packing, checked for coincident
+// spheres), else those [sample] generates. Throws ConfigError.
+std::vector<double> sample_sizes(Plan& plan) {
+  const std::string& src = plan.config.source;
+  const SampleConfig& sc = plan.config.sample;
   std::vector<double> diameters;
   if (!sc.packing_file.empty()) {
     try {
@@ -883,16 +1050,13 @@ Plan make_plan(Config config_in, const Options& options) {
   } else {
     diameters = sample_diameters(sc.generation.sizes, sc.generation.count, sc.generation.seed);
   }
-  plan.r_min = 0.5 * *std::min_element(diameters.begin(), diameters.end());
-  plan.r_max = 0.5 * *std::max_element(diameters.begin(), diameters.end());
-  {
-    std::vector<double> radii(diameters.size());
-    for (std::size_t k = 0; k < diameters.size(); ++k) radii[k] = 0.5 * diameters[k];
-    plan.d50 = median_diameter(radii);
-  }
-  double solid = 0.0;
-  for (double d : diameters) solid += std::numbers::pi / 6.0 * d * d * d;
+  return diameters;
+}
 
+// The shear stage's model (material, contact settings, skin, dt) and the time units of the
+// preparation and the servos, from the smallest radius.
+void derive_model(Plan& plan) {
+  const Config& config = plan.config;
   Model& m = plan.base;
   m.materials = {config.material};
   m.contact = config.contact;
@@ -904,10 +1068,16 @@ Plan make_plan(Config config_in, const Options& options) {
   plan.prepare_dt = config.prepare.dt_fraction > 0.0 ? config.prepare.dt_fraction * rayleigh_time(plan.r_min, config.material)
                                                      : m.dt;
   plan.prepare_servo_time = std::max(plan.prepare_dt, k_servo_time_fraction * rayleigh_time(plan.r_min, config.material));
+}
 
-  // The cell must stay wider than 2 r_max + skin through the test: at a dense random packing
-  // (solid fraction <= 0.64) after preparation, then shortened by the axial strain.
-  const double max_strain = options.max_axial_strain > 0.0 ? options.max_axial_strain : config.shear.max_axial_strain;
+// The cell must stay wider than 2 r_max + skin through the test: at a dense random packing
+// (solid fraction <= 0.64) after preparation, then shortened by the axial strain. Throws
+// ConfigError naming the key at fault.
+void check_cell_width(const Plan& plan, const std::vector<double>& diameters, double max_strain) {
+  const Config& config = plan.config;
+  const Model& m = plan.base;
+  double solid = 0.0;
+  for (double d : diameters) solid += std::numbers::pi / 6.0 * d * d * d;
   const double side = std::cbrt(solid / 0.64);
   double narrowest = side;
   for (const TestSpec& t : config.tests) {
@@ -919,26 +1089,28 @@ Plan make_plan(Config config_in, const Options& options) {
     }
   }
   const double cutoff = 2.0 * plan.r_max + m.contact.skin;
-  if (!(narrowest > cutoff)) {
-    const double needed = static_cast<double>(diameters.size()) * std::pow(cutoff / narrowest, 3.0);
-    // The key at fault first: a skin wider than the spheres, a packing file's huge sphere, a
-    // strain path that collapses the cell; else the sample is too small.
-    std::string key = "sample.count = " + std::to_string(diameters.size());
-    if (m.contact.skin > 2.0 * plan.r_max) key = "contact.skin = " + num(m.contact.skin) + " m (wider than the largest sphere)";
-    else if (plan.from_file && 2.0 * plan.r_max > 0.25 * side)
-      key = "sample.file = \"" + sc.packing_file + "\": its largest radius " + num(plan.r_max) + " m";
-    else if (narrowest < side * std::exp(-max_strain) && config.shear.steps > 0)
-      key = "shear.steps = " + std::to_string(config.shear.steps) + " (with shear.strain_rates)";
-    throw ConfigError(src + ": " + key + ": the cell would narrow to " +
-                      num(narrowest) + " m (dense sample, then the axial strain), not wider than 2 r_max + skin = " +
-                      num(cutoff) + " m; allowed: more than " + num(std::ceil(needed), "%.0f") +
-                      " spheres, or a smaller shear.max_axial_strain");
-  }
-  for (const TestSpec& t : config.tests)
-    if (std::find(plan.p0.begin(), plan.p0.end(), t.p0) == plan.p0.end()) plan.p0.push_back(t.p0);
-  if (config.prepare.chain) std::sort(plan.p0.begin(), plan.p0.end());
-  // Runs that cannot end in any reasonable time (a 1e308 Pa modulus made dt 1e-155 s) or whose
-  // servo acts too seldom to control anything are refused, naming the key.
+  if (narrowest > cutoff) return;
+  const double needed = static_cast<double>(diameters.size()) * std::pow(cutoff / narrowest, 3.0);
+  // The key at fault first: a skin wider than the spheres, a packing file's huge sphere, a
+  // strain path that collapses the cell; else the sample is too small.
+  std::string key = "sample.count = " + std::to_string(diameters.size());
+  if (m.contact.skin > 2.0 * plan.r_max) key = "contact.skin = " + num(m.contact.skin) + " m (wider than the largest sphere)";
+  else if (plan.from_file && 2.0 * plan.r_max > 0.25 * side)
+    key = "sample.file = \"" + config.sample.packing_file + "\": its largest radius " + num(plan.r_max) + " m";
+  else if (narrowest < side * std::exp(-max_strain) && config.shear.steps > 0)
+    key = "shear.steps = " + std::to_string(config.shear.steps) + " (with shear.strain_rates)";
+  throw ConfigError(config.source + ": " + key + ": the cell would narrow to " +
+                    num(narrowest) + " m (dense sample, then the axial strain), not wider than 2 r_max + skin = " +
+                    num(cutoff) + " m; allowed: more than " + num(std::ceil(needed), "%.0f") +
+                    " spheres, or a smaller shear.max_axial_strain");
+}
+
+// Runs that cannot end in any reasonable time (a 1e308 Pa modulus made dt 1e-155 s) or whose
+// servo acts too seldom to control anything are refused, naming the key.
+void check_run_lengths(const Plan& plan, double max_strain) {
+  const Config& config = plan.config;
+  const std::string& src = config.source;
+  const Model& m = plan.base;
   for (const TestSpec& t : config.tests) {
     if (t.path == ShearPath::strain) continue;
     const double rate = axial_rate(plan, t.p0);
@@ -963,6 +1135,28 @@ Plan make_plan(Config config_in, const Options& options) {
       throw ConfigError(src + ": " + (plan.prepare_dt < 1e-12 ? "material.young = " + num(config.material.young) + " Pa" : "prepare.max_rate = " + num(config.prepare.max_rate)) +
                         ": the preparation would take more than " + num(steps, "%.2g") + " steps; allowed: up to 1e10");
   }
+}
+
+Plan make_plan(Config config_in, const Options& options) {
+  Plan plan;
+  plan.options = options;
+  plan.config = std::move(config_in);
+  const Config& config = plan.config;
+  const std::vector<double> diameters = sample_sizes(plan);
+  plan.r_min = 0.5 * *std::min_element(diameters.begin(), diameters.end());
+  plan.r_max = 0.5 * *std::max_element(diameters.begin(), diameters.end());
+  {
+    std::vector<double> radii(diameters.size());
+    for (std::size_t k = 0; k < diameters.size(); ++k) radii[k] = 0.5 * diameters[k];
+    plan.d50 = median_diameter(radii);
+  }
+  derive_model(plan);
+  const double max_strain = options.max_axial_strain > 0.0 ? options.max_axial_strain : config.shear.max_axial_strain;
+  check_cell_width(plan, diameters, max_strain);
+  for (const TestSpec& t : config.tests)
+    if (std::find(plan.p0.begin(), plan.p0.end(), t.p0) == plan.p0.end()) plan.p0.push_back(t.p0);
+  if (config.prepare.chain) std::sort(plan.p0.begin(), plan.p0.end());
+  check_run_lengths(plan, max_strain);
   // Servo settings are checked here, before anything is written.
   try {
     validate(prepare_model(plan, plan.p0.front()).servo);
@@ -971,7 +1165,7 @@ Plan make_plan(Config config_in, const Options& options) {
       if (sm.servo.enabled) validate(sm.servo);
     }
   } catch (const std::invalid_argument& e) {
-    throw ConfigError(src + ": " + e.what());
+    throw ConfigError(config.source + ": " + e.what());
   }
   const int total = options.threads > 0 ? options.threads : available_cpus();
   plan.job_threads = std::max(1, total / std::max(1, config.parallel));
@@ -1082,6 +1276,128 @@ void run_parallel(std::size_t n, int workers, Fn&& fn) {
   for (std::thread& t : pool) t.join();
 }
 
+// This process's share of a campaign (run_campaign): the selected preparations, then the selected
+// tests, `parallel` at once, with their summaries and the failures and stops counted.
+class Campaign {
+ public:
+  Campaign(const Plan& plan, Log& log, const std::vector<char>& run_prep, const std::vector<char>& run_test)
+      : plan_(plan), log_(log), run_prep_(run_prep), run_test_(run_test), runner_(plan, log), prep_(plan.p0.size()),
+        tests_(plan.config.tests.size()), prepared_(plan.p0.size(), 0) {}
+
+  /// The preparations; chained ones run in order of p0, each after the one it starts from.
+  void prepare_samples();
+  /// The tests, each on its sample (prepared here or found in the directory).
+  void shear_tests();
+  /// index.csv and samples.csv: what this process did, and for the rest what the directory holds
+  /// (other tasks' finished samples and tests), merged under a lock.
+  void write_indices();
+  int failures() const { return failures_; }
+  /// 0 done, 1 a job failed, 3 stopped (a signal or --stop-after).
+  int exit_code() const { return failures_ ? 1 : interrupted_ ? 3 : 0; }
+
+ private:
+  void failed(const std::string& what, const std::exception& e);
+  void prepare_sample(std::size_t k);
+  void shear_test(std::size_t k);
+
+  const Plan& plan_;
+  Log& log_;
+  const std::vector<char>& run_prep_;
+  const std::vector<char>& run_test_;
+  Runner runner_;
+  std::vector<Summary> prep_, tests_;
+  std::vector<char> prepared_;
+  int failures_ = 0, interrupted_ = 0;
+  std::mutex failure_mutex_;
+};
+
+// A job that threw: a stop (Interrupted) or a failure, counted, with its line.
+void Campaign::failed(const std::string& what, const std::exception& e) {
+  std::lock_guard lock(failure_mutex_);
+  if (dynamic_cast<const Interrupted*>(&e)) {
+    ++interrupted_;
+    log_.line(std::string(e.what()) + "; continue with --resume");
+    return;
+  }
+  ++failures_;
+  log_.line("triaxial: " + what + ": " + e.what());
+}
+
+void Campaign::prepare_samples() {
+  run_parallel(plan_.p0.size(), plan_.config.prepare.chain ? 1 : plan_.config.parallel, [&](std::size_t k) { prepare_sample(k); });
+}
+
+void Campaign::prepare_sample(std::size_t k) {
+  const std::string name = "prepare-" + p0_tag(plan_.p0[k]);
+  if (!run_prep_[k]) return;
+  if (stop_requested()) {
+    prep_[k].name = name;
+    prep_[k].status = "interrupted";
+    return;
+  }
+  try {
+    // A chained preparation needs the lower sample: prepared by an earlier task, or here.
+    if (const double from = plan_.chained_from(plan_.p0[k]); from > 0.0 && !runner_.ensure_sample(from)) {
+      prep_[k].name = name;
+      prep_[k].status = "skipped (sample-" + p0_tag(from) + " failed)";
+      return;
+    }
+    prepared_[k] = runner_.prepare(plan_.p0[k], prep_[k]);
+  } catch (const std::exception& e) {
+    prep_[k].name = name;
+    prep_[k].status = dynamic_cast<const Interrupted*>(&e) ? "interrupted" : "failed";
+    failed(name, e);
+  }
+}
+
+void Campaign::shear_tests() {
+  run_parallel(plan_.config.tests.size(), plan_.config.parallel, [&](std::size_t k) { shear_test(k); });
+}
+
+void Campaign::shear_test(std::size_t k) {
+  const TestSpec& t = plan_.config.tests[k];
+  tests_[k].name = t.name;
+  if (!run_test_[k]) return;
+  if (stop_requested()) {
+    tests_[k].status = "interrupted";
+    std::lock_guard lock(failure_mutex_);
+    ++interrupted_;
+    return;
+  }
+  const std::size_t sample = std::find(plan_.p0.begin(), plan_.p0.end(), t.p0) - plan_.p0.begin();
+  if (run_prep_[sample] && !prepared_[sample]) {  // its preparation failed in this process
+    tests_[k].status = "skipped (sample failed)";
+    return;
+  }
+  try {
+    if (!runner_.ensure_sample(t.p0)) {
+      tests_[k].status = "skipped (sample failed)";
+      return;
+    }
+    runner_.shear(t, tests_[k]);
+  } catch (const std::exception& e) {
+    tests_[k].status = dynamic_cast<const Interrupted*>(&e) ? "interrupted" : "failed";
+    failed(t.name, e);
+  }
+}
+
+void Campaign::write_indices() {
+  try {
+    FileLock index_lock;
+    index_lock.lock(plan_.out / ".locks" / "index.csv.lock", FileLock::Mode::exclusive);
+    for (std::size_t k = 0; k < prep_.size(); ++k)
+      if (!run_prep_[k] || prep_[k].status == "not run") {
+        if (fs::exists(runner_.sample_path(plan_.p0[k]))) prep_[k] = runner_.sample_summary(plan_.p0[k]);
+        else prep_[k].name = "prepare-" + p0_tag(plan_.p0[k]);
+      }
+    for (std::size_t k = 0; k < tests_.size(); ++k)
+      if (!run_test_[k]) tests_[k] = runner_.test_summary_on_disk(plan_.config.tests[k]);
+    write_index(plan_, prep_, tests_);
+  } catch (const std::exception& e) {
+    failed("index.csv", e);
+  }
+}
+
 }  // namespace
 
 // `triaxial analyze|study|localization ...`: runs the Python script <command>.py with the remaining arguments;
@@ -1140,6 +1456,26 @@ static Plan plan_from_file(const std::string& path, const Options& options) {
   return make_plan(parse_config(buffer.str(), path), options);
 }
 
+// The values of --time and --partition that go into the scripts. Returns 0, or 2 after a one-line message.
+static int check_slurm_options(const SlurmCampaign& c, std::ostream& err) {
+  const auto time_ok = [](const std::string& t) {
+    int d = 0, h = 0, m = 0, sec = 0;
+    char tail = 0;
+    return (std::sscanf(t.c_str(), "%d-%d:%d:%d%c", &d, &h, &m, &sec, &tail) == 4 ||
+            std::sscanf(t.c_str(), "%d:%d:%d%c", &h, &m, &sec, &tail) == 3) &&
+           d >= 0 && h >= 0 && m >= 0 && m < 60 && sec >= 0 && sec < 60;
+  };
+  if (!time_ok(c.time)) {
+    err << "triaxial slurm: --time = " << c.time << ": allowed: HH:MM:SS or D-HH:MM:SS\n";
+    return 2;
+  }
+  if (c.partition.find_first_of(" \t\n'\"$`\\") != std::string::npos) {
+    err << "triaxial slurm: --partition = " << c.partition << ": allowed: a partition name (no spaces or quotes)\n";
+    return 2;
+  }
+  return 0;
+}
+
 // `triaxial slurm CONFIG --out DIR ...`: the campaign as Slurm job arrays (slurm.hpp).
 static int slurm_main(int argc, const char* const* argv, std::ostream& out, std::ostream& err) {
   SlurmCampaign c;
@@ -1162,21 +1498,7 @@ static int slurm_main(int argc, const char* const* argv, std::ostream& out, std:
     err << "triaxial slurm: " << e.what() << " (see --help)\n";
     return 2;
   }
-  const auto time_ok = [](const std::string& t) {
-    int d = 0, h = 0, m = 0, sec = 0;
-    char tail = 0;
-    return (std::sscanf(t.c_str(), "%d-%d:%d:%d%c", &d, &h, &m, &sec, &tail) == 4 ||
-            std::sscanf(t.c_str(), "%d:%d:%d%c", &h, &m, &sec, &tail) == 3) &&
-           d >= 0 && h >= 0 && m >= 0 && m < 60 && sec >= 0 && sec < 60;
-  };
-  if (!time_ok(c.time)) {
-    err << "triaxial slurm: --time = " << c.time << ": allowed: HH:MM:SS or D-HH:MM:SS\n";
-    return 2;
-  }
-  if (c.partition.find_first_of(" \t\n'\"$`\\") != std::string::npos) {
-    err << "triaxial slurm: --partition = " << c.partition << ": allowed: a partition name (no spaces or quotes)\n";
-    return 2;
-  }
+  if (const int code = check_slurm_options(c, err); code != 0) return code;
   Plan plan;
   std::string text;
   try {
@@ -1308,11 +1630,8 @@ static int claim_directory(const Plan& plan, const Options& options, bool select
   return 0;
 }
 
-// Runs the selected preparations and tests (all of a whole run) and writes the campaign's index.
-// Returns the exit code: 0 done, 1 a job failed, 3 stopped (a signal or --stop-after).
-static int run_campaign(const Plan& plan, const Options& options, const std::vector<char>& run_prep,
-                        const std::vector<char>& run_test, std::ostream& out) {
-  Log log(out, options.progress);
+// The first lines of a run: what runs where, and the warnings that concern every stage.
+static void log_campaign_start(Log& log, const Plan& plan, const Options& options) {
   log.line("sandcell triaxial: " + plan.config.source + " -> " + plan.out.string() + ": " +
            std::to_string(plan.config.tests.size()) + " test(s), " + std::to_string(plan.p0.size()) + " sample(s), " +
            std::to_string(plan.config.parallel) + " at once x " + std::to_string(plan.job_threads) + " thread(s)");
@@ -1327,102 +1646,33 @@ static int run_campaign(const Plan& plan, const Options& options, const std::vec
   if (plan.config.prepare.dt_fraction > 0.5)
     log.line("warning: prepare.dt_fraction = " + num(plan.config.prepare.dt_fraction) +
              " > 0.5 of the Rayleigh time: contact collisions resolved by few steps");
-  Runner runner(plan, log);
-  std::vector<Summary> prep(plan.p0.size()), tests(plan.config.tests.size());
-  std::vector<char> prepared(plan.p0.size(), 0);
-  int failures = 0, interrupted = 0;
-  std::mutex failure_mutex;
-  const auto failed = [&](const std::string& what, const std::exception& e) {
-    std::lock_guard lock(failure_mutex);
-    if (dynamic_cast<const Interrupted*>(&e)) {
-      ++interrupted;
-      log.line(std::string(e.what()) + "; continue with --resume");
-      return;
-    }
-    ++failures;
-    log.line("triaxial: " + what + ": " + e.what());
-  };
-  // Chained preparations run in order of p0, each after the one it starts from.
-  run_parallel(plan.p0.size(), plan.config.prepare.chain ? 1 : plan.config.parallel, [&](std::size_t k) {
-    const std::string name = "prepare-" + p0_tag(plan.p0[k]);
-    if (!run_prep[k]) return;
-    if (stop_requested()) {
-      prep[k].name = name;
-      prep[k].status = "interrupted";
-      return;
-    }
-    try {
-      // A chained preparation needs the lower sample: prepared by an earlier task, or here.
-      if (const double from = plan.chained_from(plan.p0[k]); from > 0.0 && !runner.ensure_sample(from)) {
-        prep[k].name = name;
-        prep[k].status = "skipped (sample-" + p0_tag(from) + " failed)";
-        return;
-      }
-      prepared[k] = runner.prepare(plan.p0[k], prep[k]);
-    } catch (const std::exception& e) {
-      prep[k].name = name;
-      prep[k].status = dynamic_cast<const Interrupted*>(&e) ? "interrupted" : "failed";
-      failed(name, e);
-    }
-  });
-  run_parallel(plan.config.tests.size(), plan.config.parallel, [&](std::size_t k) {
-    const TestSpec& t = plan.config.tests[k];
-    tests[k].name = t.name;
-    if (!run_test[k]) return;
-    if (stop_requested()) {
-      tests[k].status = "interrupted";
-      std::lock_guard lock(failure_mutex);
-      ++interrupted;
-      return;
-    }
-    const std::size_t sample = std::find(plan.p0.begin(), plan.p0.end(), t.p0) - plan.p0.begin();
-    if (run_prep[sample] && !prepared[sample]) {  // its preparation failed in this process
-      tests[k].status = "skipped (sample failed)";
-      return;
-    }
-    try {
-      if (!runner.ensure_sample(t.p0)) {
-        tests[k].status = "skipped (sample failed)";
-        return;
-      }
-      runner.shear(t, tests[k]);
-    } catch (const std::exception& e) {
-      tests[k].status = dynamic_cast<const Interrupted*>(&e) ? "interrupted" : "failed";
-      failed(t.name, e);
-    }
-  });
-  // index.csv and samples.csv cover the whole campaign: what this process did, and for the rest
-  // what the directory holds (other tasks' finished samples and tests), merged under a lock.
-  try {
-    FileLock index_lock;
-    index_lock.lock(plan.out / ".locks" / "index.csv.lock", FileLock::Mode::exclusive);
-    for (std::size_t k = 0; k < prep.size(); ++k)
-      if (!run_prep[k] || prep[k].status == "not run") {
-        if (fs::exists(runner.sample_path(plan.p0[k]))) prep[k] = runner.sample_summary(plan.p0[k]);
-        else prep[k].name = "prepare-" + p0_tag(plan.p0[k]);
-      }
-    for (std::size_t k = 0; k < tests.size(); ++k)
-      if (!run_test[k]) tests[k] = runner.test_summary_on_disk(plan.config.tests[k]);
-    write_index(plan, prep, tests);
-  } catch (const std::exception& e) {
-    failed("index.csv", e);
-  }
-  log.line("results: " + (plan.out / "index.csv").string() + (failures ? " (" + std::to_string(failures) + " failed)" : ""));
-  return failures ? 1 : interrupted ? 3 : 0;
 }
 
-int triaxial_main(int argc, const char* const* argv, std::ostream& out, std::ostream& err) {
-  // `triaxial analyze RESULTS... [--out DIR]`: the critical-state and dilatancy analysis (analyze.py).
-  if (argc >= 2 && std::string(argv[1]) == "analyze") return script_main("analyze", argc - 1, argv + 1, err);
-  // `triaxial study CONFIG [--preset quick|inertia|full|size]`: the speed-accuracy study (study.py).
-  if (argc >= 2 && std::string(argv[1]) == "study") return script_main("study", argc - 1, argv + 1, err);
-  // `triaxial localization RESULTS.h5... [--out DIR] [--grid G] [--whole] [--slabs K]`: strain fields between snapshots (localization.py).
-  if (argc >= 2 && std::string(argv[1]) == "localization") return script_main("localization", argc - 1, argv + 1, err);
-  // `triaxial slurm CONFIG --out DIR [--submit]`: the campaign as Slurm job arrays (slurm.hpp).
-  if (argc >= 2 && std::string(argv[1]) == "slurm") return slurm_main(argc - 1, argv + 1, out, err);
+// Runs the selected preparations and tests (all of a whole run) and writes the campaign's index.
+// Returns the exit code: 0 done, 1 a job failed, 3 stopped (a signal or --stop-after).
+static int run_campaign(const Plan& plan, const Options& options, const std::vector<char>& run_prep,
+                        const std::vector<char>& run_test, std::ostream& out) {
+  Log log(out, options.progress);
+  log_campaign_start(log, plan, options);
+  Campaign campaign(plan, log, run_prep, run_test);
+  campaign.prepare_samples();
+  campaign.shear_tests();
+  campaign.write_indices();
+  const int failures = campaign.failures();
+  log.line("results: " + (plan.out / "index.csv").string() + (failures ? " (" + std::to_string(failures) + " failed)" : ""));
+  return campaign.exit_code();
+}
+
+// The command line of a run: the options the jobs see, and the flags that end the process early.
+struct CommandLine {
   Options options;
   bool print_default = false;
-  CLI::App app{"sandcell triaxial: true triaxial DEM tests in a stress-controlled periodic cell"};
+  bool check_only = false;
+};
+
+// The options of `triaxial [CONFIG] ...` (--help lists them in this order).
+static void add_run_options(CLI::App& app, CommandLine& cl) {
+  Options& options = cl.options;
   app.footer("Analysis of results (critical state line, M(theta), dilatancy; report and figures):\n"
              "  triaxial analyze RESULTS.h5|DIR... [--out DIR]   (triaxial analyze --help for its options)\n"
              "Speed versus accuracy (timestep, inertial number, stiffness, restitution, N; table and Pareto figure):\n"
@@ -1445,11 +1695,18 @@ int triaxial_main(int argc, const char* const* argv, std::ostream& out, std::ost
   app.add_option("--allow-change", options.allow_change,
                  "with --resume or --task: let these config keys (section.key) differ from the run's (.config.toml)")
       ->take_all();
-  app.add_flag("--print-default", print_default, "print the embedded default configuration and exit");
-  bool check_only = false;
-  app.add_flag("--check", check_only, "check the configuration (and plan the campaign) and exit; nothing is written");
+  app.add_flag("--print-default", cl.print_default, "print the embedded default configuration and exit");
+  app.add_flag("--check", cl.check_only, "check the configuration (and plan the campaign) and exit; nothing is written");
   app.add_option("--stop-after", options.stop_after,
                  "stop every job after N steps with a checkpoint, as if killed (to test --resume)");
+}
+
+// Parses the command line of a run into `cl`. Returns the exit code when the process ends here
+// (--help: 0; a bad option: 2, after a one-line message), else nothing.
+static std::optional<int> parse_command_line(int argc, const char* const* argv, CommandLine& cl, std::ostream& out,
+                                             std::ostream& err) {
+  CLI::App app{"sandcell triaxial: true triaxial DEM tests in a stress-controlled periodic cell"};
+  add_run_options(app, cl);
   try {
     app.parse(argc, argv);
   } catch (const CLI::CallForHelp& e) {
@@ -1459,10 +1716,11 @@ int triaxial_main(int argc, const char* const* argv, std::ostream& out, std::ost
     err << "triaxial: " << e.what() << " (see --help)\n";
     return 2;
   }
-  if (print_default) {
-    out << k_default_config;
-    return 0;
-  }
+  return std::nullopt;
+}
+
+// The checks of the options that CLI11 does not make. Returns 0, or 2 after a one-line message.
+static int check_options(const Options& options, std::ostream& err) {
   if (options.resume && options.overwrite) {
     err << "triaxial: --resume and --overwrite exclude each other\n";
     return 2;
@@ -1472,33 +1730,91 @@ int triaxial_main(int argc, const char* const* argv, std::ostream& out, std::ost
     return 2;
   }
   // Path limits of Linux: 4096 bytes in all, 255 a name (a longer one fails every file call).
-  {
-    std::size_t longest = 0;
-    for (const auto& part : fs::path(options.out)) longest = std::max(longest, part.native().size());
-    if (options.out.size() > 3800 || longest > 255) {
-      err << "triaxial: --out = " << options.out.substr(0, 40) << "... (" << options.out.size()
-          << " characters): allowed: a path under 3800 characters, each name under 256\n";
-      return 2;
-    }
+  std::size_t longest = 0;
+  for (const auto& part : fs::path(options.out)) longest = std::max(longest, part.native().size());
+  if (options.out.size() > 3800 || longest > 255) {
+    err << "triaxial: --out = " << options.out.substr(0, 40) << "... (" << options.out.size()
+        << " characters): allowed: a path under 3800 characters, each name under 256\n";
+    return 2;
   }
+  return 0;
+}
+
+// The run's configuration (the file named, else the embedded default), parsed and planned.
+// Throws ConfigError, or a file system error on an unreadable path.
+static Plan load_plan(const Options& options) {
+  std::string text, source = "<embedded default>";
+  if (options.config_path.empty()) {
+    text = k_default_config;
+  } else {
+    std::ifstream in(options.config_path);
+    if (!in || fs::is_directory(options.config_path))
+      throw ConfigError(options.config_path + ": cannot read the configuration file" +
+                        (fs::is_directory(options.config_path) ? " (a directory)" : ""));
+    std::ostringstream buffer;
+    buffer << in.rdbuf();
+    text = buffer.str();
+    source = options.config_path;
+  }
+  return make_plan(parse_config(text, source), options);
+}
+
+// --out, else results/<config name> (results/default for the embedded default).
+static fs::path output_directory(const Options& options) {
+  return !options.out.empty()          ? fs::path(options.out)
+         : options.config_path.empty() ? fs::path("results/default")
+                                        : fs::path("results") / fs::path(options.config_path).stem();
+}
+
+// --list: the tasks in a stable order, preparations by p0 (as prepared), then the tests.
+static void list_tasks(const Plan& plan, std::ostream& out) {
+  const std::size_t n_prep = plan.p0.size();
+  for (std::size_t k = 0; k < plan.p0.size(); ++k) out << k << " prepare prepare-" << p0_tag(plan.p0[k]) << '\n';
+  for (std::size_t k = 0; k < plan.config.tests.size(); ++k) out << n_prep + k << " test " << plan.config.tests[k].name << '\n';
+}
+
+// --task: runs only the tasks named (indices of --list), marked in run_prep and run_test.
+// Returns 0, or 2 after a one-line message.
+static int select_tasks(const Plan& plan, const std::vector<std::string>& specs, std::vector<char>& run_prep,
+                        std::vector<char>& run_test, std::ostream& err) {
+  const std::size_t n_prep = plan.p0.size(), n_tasks = plan.p0.size() + plan.config.tests.size();
+  if (plan.config.tests.size() < 2) {
+    err << "triaxial: --task: " << plan.config.source << " has one test, not a campaign; run it without --task\n";
+    return 2;
+  }
+  std::vector<std::size_t> tasks;
+  if (std::string bad = parse_tasks(specs, n_tasks, tasks); !bad.empty()) {
+    err << "triaxial: --task " << bad << '\n';
+    return 2;
+  }
+  std::fill(run_prep.begin(), run_prep.end(), 0);
+  std::fill(run_test.begin(), run_test.end(), 0);
+  for (std::size_t t : tasks) (t < n_prep ? run_prep[t] : run_test[t - n_prep]) = 1;
+  return 0;
+}
+
+int triaxial_main(int argc, const char* const* argv, std::ostream& out, std::ostream& err) {
+  // `triaxial analyze RESULTS... [--out DIR]`: the critical-state and dilatancy analysis (analyze.py).
+  if (argc >= 2 && std::string(argv[1]) == "analyze") return script_main("analyze", argc - 1, argv + 1, err);
+  // `triaxial study CONFIG [--preset quick|inertia|full|size]`: the speed-accuracy study (study.py).
+  if (argc >= 2 && std::string(argv[1]) == "study") return script_main("study", argc - 1, argv + 1, err);
+  // `triaxial localization RESULTS.h5... [--out DIR] [--grid G] [--whole] [--slabs K]`: strain fields between snapshots (localization.py).
+  if (argc >= 2 && std::string(argv[1]) == "localization") return script_main("localization", argc - 1, argv + 1, err);
+  // `triaxial slurm CONFIG --out DIR [--submit]`: the campaign as Slurm job arrays (slurm.hpp).
+  if (argc >= 2 && std::string(argv[1]) == "slurm") return slurm_main(argc - 1, argv + 1, out, err);
+  CommandLine cl;
+  if (const std::optional<int> code = parse_command_line(argc, argv, cl, out, err)) return *code;
+  Options& options = cl.options;
+  if (cl.print_default) {
+    out << k_default_config;
+    return 0;
+  }
+  if (const int code = check_options(options, err); code != 0) return code;
   options.progress = ::isatty(STDOUT_FILENO) && &out == &std::cout;
 
   Plan plan;
   try {
-    std::string text, source = "<embedded default>";
-    if (options.config_path.empty()) {
-      text = k_default_config;
-    } else {
-      std::ifstream in(options.config_path);
-      if (!in || fs::is_directory(options.config_path))
-        throw ConfigError(options.config_path + ": cannot read the configuration file" +
-                          (fs::is_directory(options.config_path) ? " (a directory)" : ""));
-      std::ostringstream buffer;
-      buffer << in.rdbuf();
-      text = buffer.str();
-      source = options.config_path;
-    }
-    plan = make_plan(parse_config(text, source), options);
+    plan = load_plan(options);
   } catch (const ConfigError& e) {
     err << "triaxial: " << one_line(e.what()) << '\n';
     return 2;
@@ -1506,37 +1822,21 @@ int triaxial_main(int argc, const char* const* argv, std::ostream& out, std::ost
     err << "triaxial: " << one_line(e.what()) << '\n';
     return 2;
   }
-  if (check_only) {
+  if (cl.check_only) {
     out << "triaxial: " << plan.config.source << ": valid: " << plan.config.tests.size() << " test(s), " << plan.p0.size()
         << " sample(s), dt = " << num(plan.base.dt) << " s\n";
     return 0;
   }
-  plan.out = !options.out.empty() ? fs::path(options.out)
-             : options.config_path.empty() ? fs::path("results/default")
-                                           : fs::path("results") / fs::path(options.config_path).stem();
-  const std::size_t n_prep = plan.p0.size(), n_tasks = plan.p0.size() + plan.config.tests.size();
-  if (options.list) {  // tasks in a stable order: preparations by p0 (as prepared), then the tests
-    for (std::size_t k = 0; k < plan.p0.size(); ++k) out << k << " prepare prepare-" << p0_tag(plan.p0[k]) << '\n';
-    for (std::size_t k = 0; k < plan.config.tests.size(); ++k) out << n_prep + k << " test " << plan.config.tests[k].name << '\n';
+  plan.out = output_directory(options);
+  if (options.list) {
+    list_tasks(plan, out);
     return 0;
   }
   // --task: which tasks this process runs (all when not given).
-  std::vector<char> run_prep(n_prep, 1), run_test(plan.config.tests.size(), options.prepare_only ? 0 : 1);
+  std::vector<char> run_prep(plan.p0.size(), 1), run_test(plan.config.tests.size(), options.prepare_only ? 0 : 1);
   const bool selected = !options.task_specs.empty();
-  if (selected) {
-    if (plan.config.tests.size() < 2) {
-      err << "triaxial: --task: " << plan.config.source << " has one test, not a campaign; run it without --task\n";
-      return 2;
-    }
-    std::vector<std::size_t> tasks;
-    if (std::string bad = parse_tasks(options.task_specs, n_tasks, tasks); !bad.empty()) {
-      err << "triaxial: --task " << bad << '\n';
-      return 2;
-    }
-    std::fill(run_prep.begin(), run_prep.end(), 0);
-    std::fill(run_test.begin(), run_test.end(), 0);
-    for (std::size_t t : tasks) (t < n_prep ? run_prep[t] : run_test[t - n_prep]) = 1;
-  }
+  if (selected)
+    if (const int code = select_tasks(plan, options.task_specs, run_prep, run_test, err); code != 0) return code;
 
   FileLock dir_lock;  // held until the campaign ends
   if (const int code = claim_directory(plan, options, selected, run_prep, run_test, dir_lock, err); code != 0) return code;
