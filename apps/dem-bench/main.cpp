@@ -357,6 +357,7 @@ int main(int argc, char** argv) {
       std::printf("usage: dem-bench [--scene FILE] [--steps N] [--threads T] [--deform RATE] [--rolling none|epsd2|epsd|cdt]\n"
                   "                 [--tangential history|incremental] [--compat] [--sort STEPS] [--serial] [--partition dynamic|fixed] [--json]\n"
                   "       dem-bench --costs [--scene FILE] [--steps N] [--threads T] [--rounds R]\n"
+                  "       dem-bench --probe [--threads T]   (the machine alone: register-only scaling, ping-pong)\n"
                   "       dem-bench --scaling [--scene FILE] [--steps N] [--threads T] [--rounds R] [--deform RATE] [--partition P] [--probe] [--json]\n");
       return 0;
     } else {
@@ -379,6 +380,13 @@ int main(int argc, char** argv) {
   }
   if (costs) return run_costs(model, packing, steps, threads, rounds);
   if (scaling) return run_scaling(model, packing, steps, threads, rounds, deform, json, probe, partition);
+  if (probe) {  // the machine alone (probe.hpp), for scripts that time other programs in the same rounds
+    const int t = threads > 0 ? threads : available_cpus();
+    const double a1 = bench::alu_rate(1, 0.2);
+    std::printf("{\"threads\": %d, \"alu_ratio\": %.6g, \"pingpong_ns\": %.6g}\n", t, bench::alu_rate(t, 0.2) / a1,
+                bench::pingpong_ns(5));
+    return 0;
+  }
   const ExecutorConfig exec{serial ? Backend::serial : Backend::tbb, threads, partition};
   World world(model, make_state(model, packing), systems_for(model), exec);
   const std::size_t n = world.state().particles.size();

@@ -1,0 +1,141 @@
+#!/usr/bin/python3
+"""Thread scaling as a distribution, measured side by side: rounds of
+
+    probe      dem-bench --probe: T register-only FP chains against one, and the cache-line
+               ping-pong between vCPUs 0 and 1 (what the machine allows, without any DEM code)
+    one        dem-bench, 1 thread
+    dynamic    dem-bench, T threads, work-stealing partition (the default)
+    fixed      dem-bench, T threads, fixed partition (--partition fixed)
+    liggghts   LIGGGHTS on T MPI ranks (when installed and --liggghts), same scene
+
+each run timed by itself, with the CPU time other processes used meanwhile (from /proc/stat and
+the run's own rusage), so that rounds run beside a foreign load can be told apart. Writes one CSV
+row per round and prints p10 / median / p90 of every throughput and of the per-round ratios.
+
+    tools/scaling_rounds.py [--rounds 30] [--threads 2] [--steps 2000] [--liggghts]
+        [--compat] [--csv docs/bench/scaling-rounds.csv] [--bench build/release/apps/dem-bench/dem-bench]
+
+The scene is dem-bench's dense-20k (scene A); with --liggghts both codes run it in LIGGGHTS'
+mode (--compat: no affine term), as tools/compare-liggghts.sh does.
+"""
+import argparse
+import csv
+import json
+import os
+import resource
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+
+import numpy as np
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+
+
+def proc_busy_ticks():
+    with open("/proc/stat") as f:
+        v = [int(x) for x in f.readline().split()[1:9]]
+    return v[0] + v[1] + v[2] + v[5] + v[6]  # user nice system irq softirq
+
+
+def children_cpu():
+    r = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return r.ru_utime + r.ru_stime
+
+
+def timed(cmd, cwd=None):
+    """Runs cmd; returns (stdout, wall seconds, other processes' CPUs over the run)."""
+    tick = os.sysconf("SC_CLK_TCK")
+    b0, c0, t0 = proc_busy_ticks(), children_cpu(), time.monotonic()
+    r = subprocess.run(cmd, cwd=cwd, capture_output=True, text=True)
+    b1, c1, t1 = proc_busy_ticks(), children_cpu(), time.monotonic()
+    if r.returncode != 0:
+        sys.exit(f"{' '.join(cmd)} failed ({r.returncode}): {r.stderr.strip()[-500:]}")
+    wall = t1 - t0
+    foreign = max(0.0, (b1 - b0) / tick - (c1 - c0)) / wall
+    return r.stdout, wall, foreign
+
+
+def q(a):
+    a = np.asarray(a, dtype=float)
+    return np.percentile(a, [10, 50, 90])
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--rounds", type=int, default=30)
+    ap.add_argument("--threads", type=int, default=2)
+    ap.add_argument("--steps", type=int, default=2000)
+    ap.add_argument("--liggghts", action="store_true", help="add LIGGGHTS on T ranks to every round")
+    ap.add_argument("--compat", action="store_true", help="dem-bench --compat (implied by --liggghts)")
+    ap.add_argument("--csv", default=os.path.join(ROOT, "docs", "bench", "scaling-rounds.csv"))
+    ap.add_argument("--bench", default=os.path.join(ROOT, "build", "release", "apps", "dem-bench", "dem-bench"))
+    args = ap.parse_args()
+    if args.rounds < 1 or args.threads < 2 or args.steps < 1:
+        sys.exit("--rounds >= 1, --threads >= 2, --steps >= 1")
+    if not os.access(args.bench, os.X_OK):
+        sys.exit(f"--bench {args.bench}: not an executable (build first)")
+    compat = ["--compat"] if (args.compat or args.liggghts) else []
+    work = tempfile.mkdtemp(prefix="scaling-")
+    if args.liggghts:
+        if not shutil.which("liggghts") or not shutil.which("mpirun"):
+            sys.exit("--liggghts: liggghts and mpirun must be installed (apt-get install liggghts)")
+        subprocess.run(["/usr/bin/python3", os.path.join(ROOT, "tools", "liggghts", "packing2data.py"),
+                        os.path.join(ROOT, "apps", "dem-bench", "scenes", "dense-20k.txt"),
+                        os.path.join(work, "dense-20k.data")], check=True)
+    rows = []
+    try:
+        for r in range(1, args.rounds + 1):
+            row = {"round": r}
+            out, _, foreign = timed([args.bench, "--probe", "--threads", str(args.threads)])
+            p = json.loads(out)
+            row.update(alu_ratio=p["alu_ratio"], pingpong_ns=p["pingpong_ns"], probe_foreign=foreign)
+            for name, extra in (("one", ["--threads", "1"]),
+                                ("dynamic", ["--threads", str(args.threads)]),
+                                ("fixed", ["--threads", str(args.threads), "--partition", "fixed"])):
+                out, _, foreign = timed([args.bench, "--steps", str(args.steps), "--json", *compat, *extra])
+                row[name] = json.loads(out)["particle_steps_per_s"]
+                row[name + "_foreign"] = foreign
+            if args.liggghts:
+                out, _, foreign = timed(["mpirun", "--allow-run-as-root", "-np", str(args.threads), "liggghts", "-in",
+                                         os.path.join(ROOT, "tools", "liggghts", "bench.in"), "-var", "data",
+                                         "dense-20k.data", "-var", "nsteps", str(args.steps), "-var", "erate", "0",
+                                         "-log", "none"], cwd=work)
+                loops = [float(line.split()[3]) for line in out.splitlines() if "Loop time" in line]
+                row["liggghts"] = 20000 * args.steps / loops[1]  # the timed run, between the two `run 0`
+                row["liggghts_foreign"] = foreign
+            rows.append(row)
+            print(" ".join(f"{k} {v:.4g}" if isinstance(v, float) else f"{k} {v}" for k, v in row.items()), flush=True)
+    finally:
+        shutil.rmtree(work, ignore_errors=True)
+    os.makedirs(os.path.dirname(args.csv), exist_ok=True)
+    with open(args.csv, "w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=list(rows[0].keys()))
+        w.writeheader()
+        w.writerows(rows)
+    T = args.threads
+    col = lambda k: np.array([row[k] for row in rows], dtype=float)  # noqa: E731
+    print(f"\n{len(rows)} rounds, {args.steps} steps, T = {T}; p10 / median / p90")
+    for k in ["one", "dynamic", "fixed"] + (["liggghts"] if args.liggghts else []):
+        a = q(col(k) / 1e6)
+        print(f"  {k:9s} {a[0]:7.2f} {a[1]:7.2f} {a[2]:7.2f} M particle-steps/s")
+    one_median = np.median(col("one"))
+    for k in ["dynamic", "fixed"]:
+        a = q(col(k) / col("one"))
+        print(f"  {k}/one per round {a[0]:.2f} {a[1]:.2f} {a[2]:.2f};  p10 of {k} / median one "
+              f"{np.percentile(col(k), 10) / one_median:.2f}")
+        if args.liggghts:
+            a = q(col(k) / col("liggghts"))
+            print(f"  {k}/liggghts per round {a[0]:.2f} {a[1]:.2f} {a[2]:.2f}")
+    a = q(col("alu_ratio"))
+    print(f"  register-only {T}/1 ratio {a[0]:.2f} {a[1]:.2f} {a[2]:.2f}; ping-pong ns "
+          + " ".join(f"{x:.0f}" for x in q(col('pingpong_ns'))))
+    quiet = [row for row in rows if max(v for k, v in row.items() if k.endswith("_foreign")) < 0.1]
+    print(f"  rounds with no other process above 0.1 CPU: {len(quiet)} of {len(rows)}")
+    print(f"wrote {args.csv}")
+
+
+if __name__ == "__main__":
+    main()
