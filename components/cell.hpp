@@ -7,9 +7,9 @@
 namespace sandcell {
 
 struct Cell {
-  Vec3 length = Vec3::Ones();   // (3) m, current edge lengths L_k; written by integrate_initial
-  Vec3 length0 = Vec3::Ones();  // (3) m, reference lengths for strains eps_k = -ln(L_k / L0_k)
-  Vec3 rate = Vec3::Zero();     // (3) 1/s, D_kk = dL_k/dt / L_k; written by the servo or set by a stage
+  Vec3 length = Vec3::Ones();          // (3) m, current edge lengths L_k; written by integrate_initial
+  Vec3 length0 = Vec3::Ones();         // (3) m, reference lengths for strains eps_k = -ln(L_k / L0_k)
+  Vec3 rate = Vec3::Zero();            // (3) 1/s, D_kk = dL_k/dt / L_k; written by the servo or set by a stage
   Vec3 servo_integral = Vec3::Zero();  // (3) s, time integral of the servo's normalized stress error per
                                        // axis (the I of its PI law); written by the servo, reset per stage
 

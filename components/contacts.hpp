@@ -21,18 +21,18 @@ struct ContactPairs {
 };
 
 struct ContactForces {
-  std::vector<Vec3> force;               // (m,3) N, force on i (on j: minus it); written by the contact law
-  std::vector<Vec3> torque_i;            // (m,3) N m, torque on i; written by the contact law and rolling
-  std::vector<Vec3> torque_j;            // (m,3) N m, torque on j; written by the contact law and rolling
+  std::vector<Vec3> force;     // (m,3) N, force on i (on j: minus it); written by the contact law
+  std::vector<Vec3> torque_i;  // (m,3) N m, torque on i; written by the contact law and rolling
+  std::vector<Vec3> torque_j;  // (m,3) N m, torque on j; written by the contact law and rolling
 };
 
 struct Contacts {
   ContactPairs pairs;
   ContactForces forces;
-  std::vector<Vec3> tangential;          // (m,3) m (or N, incremental form): tangential history; contact law
-  std::vector<Vec3> rolling;             // (m,3) N m, rolling moment history; rolling system. Empty when
-                                         // the scene has no rolling resistance.
-  bool has_rolling = false;              // whether `rolling` is allocated
+  std::vector<Vec3> tangential;  // (m,3) m (or N, incremental form): tangential history; contact law
+  std::vector<Vec3> rolling;     // (m,3) N m, rolling moment history; rolling system. Empty when
+                                 // the scene has no rolling resistance.
+  bool has_rolling = false;      // whether `rolling` is allocated
 
   std::size_t size() const { return pairs.size(); }
 };

@@ -57,8 +57,7 @@ void for_each_particle_field(P& p, Fn&& fn) {
   fn(FieldInfo{"id", "-", "constant", Component::particle_id}, p.id);
   fn(FieldInfo{"position", "m", "integrate_initial, broadphase, wrap", Component::particle_position}, p.position);
   fn(FieldInfo{"velocity", "m/s", "integrate_*", Component::particle_velocity}, p.velocity);
-  fn(FieldInfo{"angular_velocity", "rad/s", "integrate_*", Component::particle_angular_velocity},
-     p.angular_velocity);
+  fn(FieldInfo{"angular_velocity", "rad/s", "integrate_*", Component::particle_angular_velocity}, p.angular_velocity);
   fn(FieldInfo{"force", "N", "force_gather", Component::particle_force}, p.force);
   fn(FieldInfo{"torque", "N m", "force_gather", Component::particle_torque}, p.torque);
   fn(FieldInfo{"radius", "m", "constant", Component::particle_radius}, p.radius);

@@ -20,8 +20,7 @@ void check_access_slow(Component c, bool write) {
   if ((allowed & mask_of(c)) != 0) return;
   assert_fail(__FILE__, __LINE__, "declared access",
               "system '" + std::string(s->system) + "' " + (write ? "writes" : "reads") + " component '" +
-                  std::string(component_name(c)) + "' outside its declared " + (write ? "write" : "read") +
-                  " set");
+                  std::string(component_name(c)) + "' outside its declared " + (write ? "write" : "read") + " set");
 }
 }  // namespace detail
 

@@ -16,9 +16,9 @@ AssertHandler set_assert_handler(AssertHandler handler);
 
 }  // namespace sandcell
 
-#define SANDCELL_CHECK(cond, msg)                                              \
-  do {                                                                         \
-    if (!(cond)) ::sandcell::assert_fail(__FILE__, __LINE__, #cond, (msg));    \
+#define SANDCELL_CHECK(cond, msg)                                           \
+  do {                                                                      \
+    if (!(cond)) ::sandcell::assert_fail(__FILE__, __LINE__, #cond, (msg)); \
   } while (false)
 
 #ifdef NDEBUG

@@ -99,7 +99,8 @@ void check_ranges(const std::filesystem::path& path, const State& state) {
       fail("contact " + std::to_string(k) + " does not join the particles its ids name");
   }
   for (std::size_t k = 0; k < n; ++k)
-    if (!(state.particles.radius[k] > 0.0) || !(state.particles.mass[k] > 0.0) || !std::isfinite(state.particles.radius[k]))
+    if (!(state.particles.radius[k] > 0.0) || !(state.particles.mass[k] > 0.0) ||
+        !std::isfinite(state.particles.radius[k]))
       fail("particle " + std::to_string(k) + ": radius or mass not > 0");
   if (!(state.cell.length.minCoeff() > 0.0) || !state.cell.length.allFinite()) fail("cell lengths not > 0");
 }
@@ -260,12 +261,14 @@ State read_checkpoint(const std::filesystem::path& path, CheckpointExtra* extra)
         const h5::Group doubles = ex.open_group("doubles");
         for (const std::string& key : doubles.children()) all.doubles[key] = doubles.open_dataset(key).read<double>();
         const h5::Group integers = ex.open_group("integers");
-        for (const std::string& key : integers.children()) all.integers[key] = integers.open_dataset(key).read<std::int64_t>();
+        for (const std::string& key : integers.children())
+          all.integers[key] = integers.open_dataset(key).read<std::int64_t>();
         const h5::Group strings = ex.open_group("strings");
         for (const std::string& key : strings.attribute_names()) all.strings[key] = strings.get_string(key);
       }
       if (static_cast<std::uint64_t>(root.get_value<std::int64_t>("checksum")) != checksum(state, x))
-        throw std::runtime_error(path.string() + ": corrupted checkpoint: its data do not match the checksum written with it");
+        throw std::runtime_error(path.string() +
+                                 ": corrupted checkpoint: its data do not match the checksum written with it");
     }
     check_ranges(path, state);
   }

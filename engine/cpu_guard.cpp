@@ -18,9 +18,10 @@ namespace {
 // The features of the x86-64 levels v2-v4 that GCC and Clang predefine a macro for, in the bit
 // order of detail::required_isa() (engine/build_arch.cpp). One list gives both the names and the
 // CPU queries: __builtin_cpu_supports takes a string literal only.
-#define SANDCELL_ISA_FEATURES(X)                                                                                 \
-  X("sse3") X("ssse3") X("sse4.1") X("sse4.2") X("popcnt") X("avx") X("avx2") X("bmi") X("bmi2") X("f16c")    \
-  X("fma") X("lzcnt") X("movbe") X("avx512f") X("avx512vl") X("avx512bw") X("avx512dq") X("avx512cd")
+#define SANDCELL_ISA_FEATURES(X)                                                                                     \
+  X("sse3")                                                                                                          \
+  X("ssse3") X("sse4.1") X("sse4.2") X("popcnt") X("avx") X("avx2") X("bmi") X("bmi2") X("f16c") X("fma") X("lzcnt") \
+      X("movbe") X("avx512f") X("avx512vl") X("avx512bw") X("avx512dq") X("avx512cd")
 
 #define SANDCELL_ISA_NAME(name) name,
 constexpr std::array isa_feature_names = {SANDCELL_ISA_FEATURES(SANDCELL_ISA_NAME)};

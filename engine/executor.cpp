@@ -23,8 +23,8 @@ Executor::Executor(ExecutorConfig config) : backend_(config.backend), partition_
   // Every world has an executor: this reference links engine/cpu_guard.cpp into every program, and
   // with it the startup check that stops a build for a newer CPU with a message (build_arch.hpp).
   static_cast<void>(build_arch());
-  SANDCELL_CHECK(config.threads >= 0, "threads must be >= 0 (0 = all hardware threads), got " +
-                                          std::to_string(config.threads));
+  SANDCELL_CHECK(config.threads >= 0,
+                 "threads must be >= 0 (0 = all hardware threads), got " + std::to_string(config.threads));
   if (backend_ == Backend::serial) {
     threads_ = 1;
     return;
@@ -52,8 +52,7 @@ int available_cpus() {
   return std::max(1, static_cast<int>(std::thread::hardware_concurrency()));
 }
 
-void Executor::parallel_for(std::size_t n, std::size_t grain,
-                            FunctionRef<void(std::size_t, std::size_t)> body) {
+void Executor::parallel_for(std::size_t n, std::size_t grain, FunctionRef<void(std::size_t, std::size_t)> body) {
   grain = std::max<std::size_t>(grain, 1);
   const std::size_t chunks = (n + grain - 1) / grain;
   if (chunks == 0) return;

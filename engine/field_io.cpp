@@ -41,7 +41,8 @@ void write_bytes(const std::filesystem::path& path, const std::vector<unsigned c
       ::close(fd);
       std::error_code ec;
       std::filesystem::remove(path, ec);
-      throw std::runtime_error(path.string() + ": cannot write " + std::to_string(bytes.size()) + " bytes (" + why + ")");
+      throw std::runtime_error(path.string() + ": cannot write " + std::to_string(bytes.size()) + " bytes (" + why +
+                               ")");
     }
     done += static_cast<std::size_t>(n);
   }
@@ -60,8 +61,9 @@ void require_free_space(const std::filesystem::path& path, std::uint64_t bytes) 
   if (::statvfs(where.empty() ? "." : where.c_str(), &fs) != 0) return;  // unknown: let the write tell
   const std::uint64_t free = static_cast<std::uint64_t>(fs.f_bavail) * fs.f_frsize;
   if (free < bytes + k_reserve)
-    throw std::runtime_error(path.string() + ": disk full: " + std::to_string(free >> 10) + " KiB free on its file system, " +
-                             "writing needs about " + std::to_string((bytes + k_reserve) >> 10) +
+    throw std::runtime_error(path.string() + ": disk full: " + std::to_string(free >> 10) +
+                             " KiB free on its file system, " + "writing needs about " +
+                             std::to_string((bytes + k_reserve) >> 10) +
                              " KiB (with a 4 MiB reserve); the file is kept as of its last flush");
 }
 

@@ -68,7 +68,6 @@ void read_field(const h5::Group& group, const FieldInfo& info, std::vector<T>& v
   d.read(L::scalar, values.data(), n * L::width);
 }
 
-
 /// Writes `bytes` to `path` (created or truncated) with plain POSIX writes; a full disk (ENOSPC),
 /// an I/O error or a permission problem is a std::runtime_error naming the file and the cause, and
 /// leaves no partial file behind.

@@ -52,19 +52,24 @@ void validate(const GenerationSettings& s) {
       fail("d_max", num(s.sizes.d_max), "must be >= d_min = " + num(s.sizes.d_min) + " m");
   } else {
     const auto& t = s.sizes.table;
-    if (t.size() < 2) fail("gradation", std::to_string(t.size()) + " rows", "needs at least 2 rows (diameter, percent passing)");
+    if (t.size() < 2)
+      fail("gradation", std::to_string(t.size()) + " rows", "needs at least 2 rows (diameter, percent passing)");
     for (std::size_t k = 0; k < t.size(); ++k) {
       const std::string row = "gradation[" + std::to_string(k) + "]";
       if (!(t[k].first > 0.0)) fail(row + ".diameter", num(t[k].first), "must be > 0 m");
-      if (!(t[k].second >= 0.0 && t[k].second <= 100.0)) fail(row + ".percent", num(t[k].second), "must be in [0, 100]");
+      if (!(t[k].second >= 0.0 && t[k].second <= 100.0))
+        fail(row + ".percent", num(t[k].second), "must be in [0, 100]");
       if (k > 0 && !(t[k].first > t[k - 1].first))
         fail(row + ".diameter", num(t[k].first), "diameters must increase (previous " + num(t[k - 1].first) + " m)");
       if (k > 0 && !(t[k].second >= t[k - 1].second))
-        fail(row + ".percent", num(t[k].second), "percent passing must not decrease (previous " + num(t[k - 1].second) + ")");
+        fail(row + ".percent", num(t[k].second),
+             "percent passing must not decrease (previous " + num(t[k - 1].second) + ")");
     }
-    if (t.front().second != 0.0) fail("gradation[0].percent", num(t.front().second), "must be 0 (the smallest diameter)");
+    if (t.front().second != 0.0)
+      fail("gradation[0].percent", num(t.front().second), "must be 0 (the smallest diameter)");
     if (t.back().second != 100.0)
-      fail("gradation[" + std::to_string(t.size() - 1) + "].percent", num(t.back().second), "must be 100 (the largest diameter)");
+      fail("gradation[" + std::to_string(t.size() - 1) + "].percent", num(t.back().second),
+           "must be 100 (the largest diameter)");
     // sample_diameters draws by mass and keeps a draw with probability (d_min/d)^3 (by number): the
     // mean of that over the mass distribution is the share of draws kept. A gradation over many
     // decades keeps almost none, and sampling would not end.
@@ -76,8 +81,9 @@ void validate(const GenerationSettings& s) {
     }
     if (kept < 1e-4)
       fail("gradation", "[" + num(t.front().first) + " ... " + num(t.back().first) + " m]",
-           "spans too wide a range to sample: " + num(1.0 / kept) + " draws a sphere (allowed: up to 1e4, e.g. "
-           "d_max / d_min <= ~20 for a mass-linear gradation)");
+           "spans too wide a range to sample: " + num(1.0 / kept) +
+               " draws a sphere (allowed: up to 1e4, e.g. "
+               "d_max / d_min <= ~20 for a mass-linear gradation)");
   }
 }
 
@@ -107,7 +113,8 @@ Packing generate_packing(const GenerationSettings& s) {
   for (double v : d) solid += std::numbers::pi / 6.0 * v * v * v;
   const double side = std::cbrt(solid / s.solid_fraction);
   if (!(side > d.front()))
-    throw std::runtime_error("sample: cube side " + num(side) + " m from count and solid fraction is not larger than the largest diameter " +
+    throw std::runtime_error("sample: cube side " + num(side) +
+                             " m from count and solid fraction is not larger than the largest diameter " +
                              num(d.front()) + " m: use more spheres");
 
   // Cell lists of width >= d_max: a sphere can only overlap spheres in the 27 surrounding bins.
@@ -132,7 +139,8 @@ Packing generate_packing(const GenerationSettings& s) {
       for (int oz = -1; oz <= 1 && free; ++oz)
         for (int oy = -1; oy <= 1 && free; ++oy)
           for (int ox = -1; ox <= 1 && free; ++ox) {
-            const int t[3] = {(b[0] + ox + n_bins) % n_bins, (b[1] + oy + n_bins) % n_bins, (b[2] + oz + n_bins) % n_bins};
+            const int t[3] = {(b[0] + ox + n_bins) % n_bins, (b[1] + oy + n_bins) % n_bins,
+                              (b[2] + oz + n_bins) % n_bins};
             for (std::uint32_t q : bins[(static_cast<std::size_t>(t[2]) * n_bins + t[1]) * n_bins + t[0]]) {
               Vec3 dx = x - packing.position[q];
               for (int a = 0; a < 3; ++a) dx[a] -= side * std::nearbyint(dx[a] / side);  // minimum image

@@ -33,9 +33,9 @@ struct SizeDistribution {
 };
 
 struct GenerationSettings {
-  std::size_t count = 0;           // spheres
+  std::size_t count = 0;  // spheres
   SizeDistribution sizes;
-  double solid_fraction = 0.3;     // -, of the generated cloud, in (0, 0.35]
+  double solid_fraction = 0.3;  // -, of the generated cloud, in (0, 0.35]
   std::uint64_t seed = 1;
   std::size_t max_attempts = 100000;  // placement tries per sphere
 };

@@ -343,8 +343,8 @@ Dataset Group::open_dataset(std::string_view name) const {
 Dataset Group::create_dataset(std::string_view name, Scalar type, std::span<const std::uint64_t> shape,
                               const void* data) {
   const std::string n(name);
-  Handle space(H5Screate_simple(static_cast<int>(shape.size()), reinterpret_cast<const hsize_t*>(shape.data()),
-                                nullptr));
+  Handle space(
+      H5Screate_simple(static_cast<int>(shape.size()), reinterpret_cast<const hsize_t*>(shape.data()), nullptr));
   if (!space.valid()) fail("cannot make the dataspace of dataset " + quoted(name));
   Handle d(H5Dcreate2(id(), n.c_str(), file_type(type), space.get(), H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT));
   if (!d.valid()) fail("cannot create dataset " + quoted(name));
@@ -425,7 +425,8 @@ std::vector<unsigned char> File::image() {
 File File::open(const std::filesystem::path& path, Mode mode) {
   silence_hdf5();
   std::error_code ec;
-  if (!std::filesystem::is_regular_file(path, ec)) throw_error(path.string(), "", "no such file (or not a regular file)");
+  if (!std::filesystem::is_regular_file(path, ec))
+    throw_error(path.string(), "", "no such file (or not a regular file)");
   const htri_t is_hdf5 = H5Fis_hdf5(path.c_str());
   if (is_hdf5 <= 0) throw_error(path.string(), "", "not an HDF5 file");
   Handle fapl = access_properties(path.string());

@@ -28,12 +28,18 @@ enum class Scalar : std::uint8_t { f64, i8, u32, i64, u64 };
 
 template <class T>
 constexpr Scalar scalar_of() {
-  if constexpr (std::is_same_v<T, double>) return Scalar::f64;
-  else if constexpr (std::is_same_v<T, std::int8_t>) return Scalar::i8;
-  else if constexpr (std::is_same_v<T, std::uint32_t>) return Scalar::u32;
-  else if constexpr (std::is_same_v<T, std::int64_t>) return Scalar::i64;
-  else if constexpr (std::is_same_v<T, std::uint64_t>) return Scalar::u64;
-  else static_assert(!sizeof(T), "no HDF5 element type for this C++ type");
+  if constexpr (std::is_same_v<T, double>)
+    return Scalar::f64;
+  else if constexpr (std::is_same_v<T, std::int8_t>)
+    return Scalar::i8;
+  else if constexpr (std::is_same_v<T, std::uint32_t>)
+    return Scalar::u32;
+  else if constexpr (std::is_same_v<T, std::int64_t>)
+    return Scalar::i64;
+  else if constexpr (std::is_same_v<T, std::uint64_t>)
+    return Scalar::u64;
+  else
+    static_assert(!sizeof(T), "no HDF5 element type for this C++ type");
 }
 
 /// Owns one HDF5 id (file, group, dataset, dataspace, type, property list, attribute) and releases
@@ -171,8 +177,7 @@ class Group : public Node {
 
   Dataset open_dataset(std::string_view name) const;
   /// Creates a fixed-size dataset of the given shape and writes data (product of shape elements).
-  Dataset create_dataset(std::string_view name, Scalar type, std::span<const std::uint64_t> shape,
-                         const void* data);
+  Dataset create_dataset(std::string_view name, Scalar type, std::span<const std::uint64_t> shape, const void* data);
   template <class T>
   Dataset create_dataset(std::string_view name, std::span<const T> data, std::span<const std::uint64_t> shape) {
     std::uint64_t n = 1;

@@ -27,7 +27,7 @@ enum class RollingModel {
 };
 
 struct ContactSettings {
-  bool enabled = true;                               // false: free flight (no broadphase, no forces)
+  bool enabled = true;           // false: free flight (no broadphase, no forces)
   std::string normal = "hertz";  // the normal law, by its registered name (docs/physics.md section 2):
                                  // hertz, hooke
   // Named parameters of the chosen laws, SI units (e.g. hooke: characteristic_velocity, m/s).
@@ -45,10 +45,10 @@ struct ContactSettings {
 /// Effective contact constants of a pair of materials (mixing rule: docs/physics.md section 2 for E*, G*;
 /// arithmetic mean of restitution, friction and rolling friction when the two materials differ).
 struct PairMaterial {
-  double e_star = 0.0;    // Pa, 1/E* = (1-nu_i^2)/E_i + (1-nu_j^2)/E_j
-  double g_star = 0.0;    // Pa, 1/G* = (2-nu_i)/G_i + (2-nu_j)/G_j
-  double beta = 0.0;      // -, ln(e)/sqrt(ln(e)^2 + pi^2), <= 0
-  double friction = 0.0;  // -, mu
+  double e_star = 0.0;            // Pa, 1/E* = (1-nu_i^2)/E_i + (1-nu_j^2)/E_j
+  double g_star = 0.0;            // Pa, 1/G* = (2-nu_i)/G_i + (2-nu_j)/G_j
+  double beta = 0.0;              // -, ln(e)/sqrt(ln(e)^2 + pi^2), <= 0
+  double friction = 0.0;          // -, mu
   double rolling_friction = 0.0;  // -, mu_r
   double damping_ratio_t = 0.0;   // -, gamma_t / gamma_n = sqrt(S_t / S_n) = sqrt(4 G* / E*)
 };
@@ -61,10 +61,10 @@ enum class AxisControl {
 
 /// The stress path whose targets the servo recomputes from the measured sigma1 (docs/physics.md section 6).
 enum class StressPath {
-  fixed,             // per-axis targets as given (`target`)
-  isotropic,         // all three axes to p
-  constant_p_b,      // sigma3* = (3p - (1+b) s1)/(2-b), sigma2* = (3p(1-b) + (2b-1) s1)/(2-b)
-  constant_sigma3_b, // sigma3* = sigma3, sigma2* = b s1 + (1-b) sigma3
+  fixed,              // per-axis targets as given (`target`)
+  isotropic,          // all three axes to p
+  constant_p_b,       // sigma3* = (3p - (1+b) s1)/(2-b), sigma2* = (3p(1-b) + (2b-1) s1)/(2-b)
+  constant_sigma3_b,  // sigma3* = sigma3, sigma2* = b s1 + (1-b) sigma3
 };
 
 /// The periodic servo (docs/physics.md section 6). Soil convention: stresses and strain rates compression positive.
@@ -93,8 +93,8 @@ struct ServoSettings {
 };
 
 struct Model {
-  double dt = 0.0;                   // s, time step
-  std::vector<Material> materials;   // indexed by particles.material
+  double dt = 0.0;                  // s, time step
+  std::vector<Material> materials;  // indexed by particles.material
   ContactSettings contact;
   ServoSettings servo;
 

@@ -34,7 +34,8 @@ Packing read_packing(const std::string& path) {
     Vec3 x;
     double r = 0;
     if (!(fields >> x[0] >> x[1] >> x[2] >> r) || !(r > 0.0) || !x.allFinite())
-      throw std::runtime_error(path + ":" + std::to_string(line_no) + ": expected `x y z r` with finite values, r > 0 m");
+      throw std::runtime_error(path + ":" + std::to_string(line_no) +
+                               ": expected `x y z r` with finite values, r > 0 m");
     p.position.push_back(x);
     p.radius.push_back(r);
   }

@@ -9,9 +9,9 @@
 namespace sandcell {
 
 struct Packing {
-  Vec3 box = Vec3::Zero();        // m
-  std::vector<Vec3> position;     // m
-  std::vector<double> radius;     // m
+  Vec3 box = Vec3::Zero();     // m
+  std::vector<Vec3> position;  // m
+  std::vector<double> radius;  // m
 };
 
 /// Reads a packing; throws std::runtime_error naming the file, the line and what was expected.

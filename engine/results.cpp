@@ -22,7 +22,7 @@ constexpr std::string_view k_format = "sandcell results";
 
 // The particle arrays of a snapshot: what a viewer and the analysis tools need, not the whole
 // State (that is what checkpoints are for).
-constexpr std::array<std::string_view, 6> k_snapshot_fields = {"id", "position", "velocity", "angular_velocity",
+constexpr std::array<std::string_view, 6> k_snapshot_fields = {"id",    "position", "velocity", "angular_velocity",
                                                                "force", "radius"};
 
 std::string snapshot_name(std::uint64_t step) {
@@ -181,8 +181,8 @@ ResultsFile ResultsFile::reopen(const std::filesystem::path& path, std::uint64_t
     if (!impl->series.has("step")) impl->series.fail("no 'step' series to cut the series back by");
     const std::vector<double> steps = impl->series.open_dataset("step").read<double>();
     // Samples are appended in step order: keep the leading rows up to last_step.
-    const auto first_after = std::find_if(steps.begin(), steps.end(),
-                                          [last_step](double s) { return s > static_cast<double>(last_step); });
+    const auto first_after =
+        std::find_if(steps.begin(), steps.end(), [last_step](double s) { return s > static_cast<double>(last_step); });
     const std::uint64_t keep = static_cast<std::uint64_t>(first_after - steps.begin());
     for (const std::string& name : names) {
       h5::Dataset d = impl->series.open_dataset(name);
@@ -230,8 +230,8 @@ void ResultsFile::write_snapshot_unguarded(const State& state) {
   for_each_particle_field(state.particles, [&](const FieldInfo& info, const auto& v) {
     if (std::find(k_snapshot_fields.begin(), k_snapshot_fields.end(), info.name) == k_snapshot_fields.end()) return;
     if (v.size() != n)
-      throw std::invalid_argument("ResultsFile::write_snapshot: particle field '" + std::string(info.name) +
-                                  "' has " + std::to_string(v.size()) + " entries, id has " + std::to_string(n));
+      throw std::invalid_argument("ResultsFile::write_snapshot: particle field '" + std::string(info.name) + "' has " +
+                                  std::to_string(v.size()) + " entries, id has " + std::to_string(n));
     io::write_field(g, info, v);
     ++written;
   });
@@ -379,8 +379,8 @@ std::filesystem::path write_xdmf(const std::filesystem::path& results_path) {
     xml += "          " + data_item("position", "Float", 8, true) + "\n";
     xml += "        </Geometry>\n";
     for (const XdmfArray& a : k_xdmf_attributes) {
-      xml += "        <Attribute Name=\"" + std::string(a.name) + "\" AttributeType=\"" + std::string(a.attribute_type) +
-             "\" Center=\"Node\">\n";
+      xml += "        <Attribute Name=\"" + std::string(a.name) + "\" AttributeType=\"" +
+             std::string(a.attribute_type) + "\" Center=\"Node\">\n";
       xml += "          " + data_item(a.name, a.number_type, a.precision, a.vector) + "\n";
       xml += "        </Attribute>\n";
     }

@@ -9,9 +9,9 @@ namespace sandcell {
 
 std::size_t add_sphere(State& state, const Model& model, ParticleId id, const Vec3& position, double radius,
                        std::uint32_t material) {
-  SANDCELL_CHECK(material < model.materials.size(),
-                 "material index " + std::to_string(material) + " out of range (have " +
-                     std::to_string(model.materials.size()) + ")");
+  SANDCELL_CHECK(material < model.materials.size(), "material index " + std::to_string(material) +
+                                                        " out of range (have " +
+                                                        std::to_string(model.materials.size()) + ")");
   SANDCELL_CHECK(radius > 0.0, "radius must be > 0, got " + std::to_string(radius));
   Particles& p = state.particles;
   const std::size_t k = p.size();

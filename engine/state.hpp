@@ -40,13 +40,13 @@ class State {
   }
 };
 
-#define SANDCELL_STATE_FIELD(COMPONENT, MEMBER)        \
-  template <>                                          \
-  struct StateField<Component::COMPONENT> {            \
-    template <class S>                                 \
-    static auto& get(S& s) {                           \
-      return s.MEMBER;                                 \
-    }                                                  \
+#define SANDCELL_STATE_FIELD(COMPONENT, MEMBER) \
+  template <>                                   \
+  struct StateField<Component::COMPONENT> {     \
+    template <class S>                          \
+    static auto& get(S& s) {                    \
+      return s.MEMBER;                          \
+    }                                           \
   };
 
 SANDCELL_STATE_FIELD(particle_id, particles.id)

@@ -23,7 +23,8 @@ void validate(const ServoSettings& servo) {
   if (!(servo.inertial_number >= 0.0) || !std::isfinite(servo.inertial_number))
     fail("inertial_number", servo.inertial_number, "must be a finite value >= 0 (0: strain_rate as given)");
   if (servo.inertial_number > 0.0) {
-    if (!(servo.d50 > 0.0) || !std::isfinite(servo.d50)) fail("d50", servo.d50, "must be > 0 m with inertial_number > 0");
+    if (!(servo.d50 > 0.0) || !std::isfinite(servo.d50))
+      fail("d50", servo.d50, "must be > 0 m with inertial_number > 0");
     if (!(servo.density > 0.0) || !std::isfinite(servo.density))
       fail("density", servo.density, "must be > 0 kg/m^3 with inertial_number > 0");
   }
@@ -44,8 +45,7 @@ void validate(const ServoSettings& servo) {
           fail("target[" + std::to_string(k) + "]", servo.target[k], "must be > 0 Pa on a stress-controlled axis");
       break;
   }
-  if (servo.path != StressPath::fixed && servo.path != StressPath::isotropic &&
-      servo.control[0] != AxisControl::strain)
+  if (servo.path != StressPath::fixed && servo.path != StressPath::isotropic && servo.control[0] != AxisControl::strain)
     throw std::invalid_argument("servo.control[0] = stress: the constant-b paths drive axis 1 by strain");
 }
 
@@ -56,15 +56,19 @@ void validate(const Model& model, const State& state) {
   for (std::size_t m = 0; m < model.materials.size(); ++m) {
     const Material& mat = model.materials[m];
     const std::string key = "materials[" + std::to_string(m) + "].";
-    if (!(mat.density > 0.0)) throw std::invalid_argument(key + "density = " + std::to_string(mat.density) + ": must be > 0 kg/m^3");
-    if (!(mat.young > 0.0)) throw std::invalid_argument(key + "young = " + std::to_string(mat.young) + ": must be > 0 Pa");
+    if (!(mat.density > 0.0))
+      throw std::invalid_argument(key + "density = " + std::to_string(mat.density) + ": must be > 0 kg/m^3");
+    if (!(mat.young > 0.0))
+      throw std::invalid_argument(key + "young = " + std::to_string(mat.young) + ": must be > 0 Pa");
     if (!(mat.poisson > -1.0 && mat.poisson < 0.5))
       throw std::invalid_argument(key + "poisson = " + std::to_string(mat.poisson) + ": must be in (-1, 0.5)");
     if (!(mat.restitution > 0.0 && mat.restitution <= 1.0))
       throw std::invalid_argument(key + "restitution = " + std::to_string(mat.restitution) + ": must be in (0, 1]");
-    if (!(mat.friction >= 0.0)) throw std::invalid_argument(key + "friction = " + std::to_string(mat.friction) + ": must be >= 0");
+    if (!(mat.friction >= 0.0))
+      throw std::invalid_argument(key + "friction = " + std::to_string(mat.friction) + ": must be >= 0");
     if (!(mat.rolling_friction >= 0.0))
-      throw std::invalid_argument(key + "rolling_friction = " + std::to_string(mat.rolling_friction) + ": must be >= 0");
+      throw std::invalid_argument(key + "rolling_friction = " + std::to_string(mat.rolling_friction) +
+                                  ": must be >= 0");
   }
   if (model.contact.enabled && !(model.contact.skin > 0.0))
     throw std::invalid_argument("contact.skin = " + std::to_string(model.contact.skin) + ": must be > 0 m");
@@ -116,7 +120,8 @@ Model finalized(Model m) {
 }
 State validated(State s, const Model& m) {
   validate(m, s);
-  if (s.particles.reference_position.size() != s.particles.size()) s.particles.reference_position.resize(s.particles.size());
+  if (s.particles.reference_position.size() != s.particles.size())
+    s.particles.reference_position.resize(s.particles.size());
   return s;
 }
 }  // namespace
@@ -154,7 +159,8 @@ World::World(Model model, State state, std::vector<SystemSpec> systems, Executor
 }
 
 void World::check_health() const {
-  if (!scratch_.error.empty()) throw SimulationError("step " + std::to_string(state_.clock.step) + ": " + scratch_.error);
+  if (!scratch_.error.empty())
+    throw SimulationError("step " + std::to_string(state_.clock.step) + ": " + scratch_.error);
 }
 
 void World::step(std::uint64_t n) {

@@ -63,8 +63,13 @@ void for_each_neighbor(const Bins& bins, const std::array<int, 3>& b, const std:
         for (int a = 0; a < 3; ++a) {
           int v = b[a] + o[a];
           std::int8_t s = 0;
-          if (v < 0) { v += bins.n[a]; s = -1; }
-          else if (v >= bins.n[a]) { v -= bins.n[a]; s = 1; }
+          if (v < 0) {
+            v += bins.n[a];
+            s = -1;
+          } else if (v >= bins.n[a]) {
+            v -= bins.n[a];
+            s = 1;
+          }
           t[a] = v;
           shift[a] = s;
         }
@@ -75,15 +80,16 @@ void for_each_neighbor(const Bins& bins, const std::array<int, 3>& b, const std:
 
 // Why a list cannot be built: a non-finite position or cell, or a cell too narrow for the cutoff
 // (a sphere would meet its own image); empty when it can.
-std::string unbuildable(const std::vector<ParticleId>& id, const std::vector<Vec3>& x, const Vec3& length,
-                        double r_max, double skin) {
+std::string unbuildable(const std::vector<ParticleId>& id, const std::vector<Vec3>& x, const Vec3& length, double r_max,
+                        double skin) {
   // A run gone unstable shows here first as a non-finite position (the rebuild test sends every
   // such step to a build): stop with the particle rather than bin NaNs.
   for (std::size_t k = 0; k < x.size(); ++k)
     if (!x[k].allFinite()) return not_finite_message(id[k], x[k]);
   if (!length.allFinite())
     return "cell lengths (" + std::to_string(length[0]) + ", " + std::to_string(length[1]) + ", " +
-           std::to_string(length[2]) + ") m are not finite: the servo went unstable (a stress that is not "
+           std::to_string(length[2]) +
+           ") m are not finite: the servo went unstable (a stress that is not "
            "finite, or a gain too high for the time step)";
   const double cutoff = 2.0 * r_max + skin;
   if (!(length.minCoeff() > cutoff)) {
@@ -404,10 +410,10 @@ void Broadphase::run(const Model& model, State& state, Scratch& scratch, Executo
         scratch.error = not_finite_message(id[worst], x[worst]);
       else
         scratch.error = "particle id " + std::to_string(id[worst]) + ": moved " + std::to_string(worst_d) +
-                   " m since the neighbour list build, more than skin/2 + r_min = " + std::to_string(limit) +
-                   " m: in one step it went farther than the smallest radius (speed " +
-                   std::to_string((worst_d - 0.5 * model.contact.skin) / model.dt) + " m/s or more): " +
-                   k_unstable_advice;
+                        " m since the neighbour list build, more than skin/2 + r_min = " + std::to_string(limit) +
+                        " m: in one step it went farther than the smallest radius (speed " +
+                        std::to_string((worst_d - 0.5 * model.contact.skin) / model.dt) +
+                        " m/s or more): " + k_unstable_advice;
       return;
     }
   }

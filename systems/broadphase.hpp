@@ -37,20 +37,20 @@ namespace sandcell {
 
 /// The broadphase's private buffers and statistics (Scratch::own).
 struct BroadphaseScratch {
-  std::vector<std::uint32_t> bin_start;     // (n_bins+1) -, CSR of particles per bin
-  std::vector<std::uint32_t> bin_particle;  // (n) -, particle indices sorted by bin
-  std::vector<std::uint32_t> particle_bin;  // (n) -, bin of each particle
-  std::vector<std::uint32_t> count;         // (n) -, new pairs per particle i
-  std::vector<std::uint32_t> start;         // (n+1) -, prefix sum of count
-  std::vector<std::uint32_t> old_start;     // (n+1) -, ranges of old_order per particle i
-  std::vector<std::uint32_t> old_order;     // (m_old) -, previous list's pair indices grouped by i
-  std::vector<std::array<int, 3>> shift;    // (n) -, cell lengths the last wrap subtracted from each position
-  ContactPairs next_pairs;                  // the list being built, swapped with the State's
+  std::vector<std::uint32_t> bin_start;         // (n_bins+1) -, CSR of particles per bin
+  std::vector<std::uint32_t> bin_particle;      // (n) -, particle indices sorted by bin
+  std::vector<std::uint32_t> particle_bin;      // (n) -, bin of each particle
+  std::vector<std::uint32_t> count;             // (n) -, new pairs per particle i
+  std::vector<std::uint32_t> start;             // (n+1) -, prefix sum of count
+  std::vector<std::uint32_t> old_start;         // (n+1) -, ranges of old_order per particle i
+  std::vector<std::uint32_t> old_order;         // (m_old) -, previous list's pair indices grouped by i
+  std::vector<std::array<int, 3>> shift;        // (n) -, cell lengths the last wrap subtracted from each position
+  ContactPairs next_pairs;                      // the list being built, swapped with the State's
   std::vector<std::vector<Vec3>> next_history;  // (histories)(m,3) the per-contact histories for the list
                                                 //   being built (components/fields.hpp: for_each_contact_history)
-  double cutoff = 0.0;                      // m, 2 r_max + skin of the last build
-  double r_min = 0.0;                       // m, smallest radius (0: not yet known)
-  std::uint64_t builds = 0;                 // neighbour-list builds so far
+  double cutoff = 0.0;                          // m, 2 r_max + skin of the last build
+  double r_min = 0.0;                           // m, smallest radius (0: not yet known)
+  std::uint64_t builds = 0;                     // neighbour-list builds so far
 };
 
 /// The components of every per-contact history (components/fields.hpp).

@@ -54,10 +54,10 @@ struct alignas(64) Block {
   double beta[k_block];                          // -
   const PairMaterial* mat[k_block];
   // Computed in phase 2:
-  double inv_dist[k_block];                      // 1/m
-  double overlap[k_block];                       // m, <= 0 when apart
-  double k_n[k_block], k_t[k_block];             // N/m
-  double gamma_n[k_block];                       // kg/s
+  double inv_dist[k_block];           // 1/m
+  double overlap[k_block];            // m, <= 0 when apart
+  double k_n[k_block], k_t[k_block];  // N/m
+  double gamma_n[k_block];            // kg/s
 };
 
 // Everything the pass reads and writes, bound once per pass and copied by value into each chunk:
@@ -111,7 +111,8 @@ PassData bind_pass(const Model& model, State& state, Scratch& scratch) {
   const PairConstants& constants = scratch.read<PairConstants>();
   SANDCELL_CHECK(constants.r_star.size() == pairs.size(),
                  "contact: " + std::to_string(constants.r_star.size()) + " pair constants for " +
-                     std::to_string(pairs.size()) + " pairs: the pair list must come from the broadphase "
+                     std::to_string(pairs.size()) +
+                     " pairs: the pair list must come from the broadphase "
                      "(or World's rebuild of its scratch), which computes them");
   const Cell& cell = state.read<Component::cell>();
   ContactForces& out = state.write<Component::contact_forces>();
@@ -126,14 +127,32 @@ PassData bind_pass(const Model& model, State& state, Scratch& scratch) {
   restart_regimes(hint, m, constants.generation);
   SANDCELL_ASSERT(hint.regime.size() == m, "contact regimes of another pair list");
 
-  PassData d{pairs.i.data(), pairs.j.data(), state.read<Component::particle_position>().data(),
+  PassData d{pairs.i.data(),
+             pairs.j.data(),
+             state.read<Component::particle_position>().data(),
              state.read<Component::particle_velocity>().data(),
              state.read<Component::particle_angular_velocity>().data(),
-             state.read<Component::particle_mass>().data(), state.read<Component::particle_material>().data(),
-             constants.r_star.data(), constants.m_star.data(), constants.r_i.data(), constants.r_j.data(),
-             constants.image_code.data(), model.pairs.data(), model.materials.size(), out.force.data(),
-             out.torque_i.data(), out.torque_j.data(), tangential.data(), rolling.data(), hint.regime.data(),
-             hint.order.data(), hint.stale.data(), hint.sorted.data(), {}, cell.rate, model.dt,
+             state.read<Component::particle_mass>().data(),
+             state.read<Component::particle_material>().data(),
+             constants.r_star.data(),
+             constants.m_star.data(),
+             constants.r_i.data(),
+             constants.r_j.data(),
+             constants.image_code.data(),
+             model.pairs.data(),
+             model.materials.size(),
+             out.force.data(),
+             out.torque_i.data(),
+             out.torque_j.data(),
+             tangential.data(),
+             rolling.data(),
+             hint.regime.data(),
+             hint.order.data(),
+             hint.stale.data(),
+             hint.sorted.data(),
+             {},
+             cell.rate,
+             model.dt,
              characteristic_velocity(model.contact)};
   // The product img * L exactly as per pair.
   for (int c = 0; c < 27; ++c) {
@@ -269,9 +288,9 @@ struct ContactKernel {
         const double b = d.mass[j] * d.r_j[k] * d.r_j[k];
         i_r = 1.4 * a * b / (a + b);
       }
-      const Vec3 moment = roll.evaluate(
-          RollingInput{c.n, c.w_i - c.w_j, c.overlap, f_n, k_n, k_t, c.r_star, i_r, mat.rolling_friction},
-          rolling_history ? d.hist_r[k] : no_history, rolling_capped);
+      const Vec3 moment =
+          roll.evaluate(RollingInput{c.n, c.w_i - c.w_j, c.overlap, f_n, k_n, k_t, c.r_star, i_r, mat.rolling_friction},
+                        rolling_history ? d.hist_r[k] : no_history, rolling_capped);
       t_i -= moment;
       t_j += moment;
     }
@@ -318,8 +337,9 @@ void contact_loop(const Model& model, State& state, Scratch& scratch, Executor& 
   // `flatten` inlines the kernel and the laws' small Eigen operations into the loop: left to GCC's
   // heuristics, composing the laws as types kept one of them out of line, +7.7 % instructions
   // (callgrind).
-  exec.parallel_for(state.contacts.pairs.size(), k_contact_grain,
-                    [kernel](std::size_t b, std::size_t e) __attribute__((flatten)) { kernel.chunk(b, e); });
+  exec.parallel_for(
+      state.contacts.pairs.size(),
+      k_contact_grain, [kernel](std::size_t b, std::size_t e) __attribute__((flatten)) { kernel.chunk(b, e); });
 }
 
 // Calls fn(std::type_identity<L>{}) for the law of `list` for which match(L) holds; false if none.
@@ -365,8 +385,10 @@ void run_pass(const Model& model, State& state, Scratch& scratch, Executor& exec
     using N = typename decltype(normal)::type;
     using T = typename decltype(tangential)::type;
     constexpr RollingModel R = decltype(roll)::value;
-    if (model.contact.liggghts_compat) contact_loop<N, T, R, false, Update>(model, state, scratch, exec);
-    else contact_loop<N, T, R, true, Update>(model, state, scratch, exec);
+    if (model.contact.liggghts_compat)
+      contact_loop<N, T, R, false, Update>(model, state, scratch, exec);
+    else
+      contact_loop<N, T, R, true, Update>(model, state, scratch, exec);
   });
 }
 
@@ -395,7 +417,8 @@ void ContactPass::prepare(const Model& model, State& state) {
     N::validate(model.contact);
   });
   // Only the laws with a stored moment keep one (cdt has none).
-  state.contacts.has_rolling = model.contact.rolling == RollingModel::epsd2 || model.contact.rolling == RollingModel::epsd;
+  state.contacts.has_rolling =
+      model.contact.rolling == RollingModel::epsd2 || model.contact.rolling == RollingModel::epsd;
   if (!state.contacts.has_rolling) state.contacts.rolling.clear();
 }
 

@@ -29,8 +29,8 @@ struct ContactPass {
   static constexpr std::string_view name = "contact";
   static constexpr ComponentMask reads =
       mask_of({Component::contact_pairs, Component::particle_position, Component::particle_velocity,
-               Component::particle_angular_velocity, Component::particle_mass,
-               Component::particle_material, Component::cell, Component::pair_constants});
+               Component::particle_angular_velocity, Component::particle_mass, Component::particle_material,
+               Component::cell, Component::pair_constants});
   static constexpr ComponentMask writes =
       mask_of({Component::contact_forces, Component::contact_tangential, Component::contact_rolling});
   static void run(const Model& model, State& state, Scratch& scratch, Executor& exec);
@@ -49,10 +49,10 @@ struct ContactPass {
 /// from a state starts without them. Not checkpointed.
 struct ContactScratch {
   static constexpr std::uint8_t k_apart = 4;  // regime of an open pair: its outputs and histories zero since it opened
-  std::vector<std::uint8_t> regime;  // (m) -, pair k in the last step: bit 0 Coulomb cap, bit 1 rolling cap;
-                                     //   or k_apart
-  std::vector<std::uint8_t> order;   // (m) -, per block, a permutation of its pair offsets 0..63
-  std::vector<std::uint8_t> stale;   // (blocks) -, 1: a regime in the block changed, sort it again
+  std::vector<std::uint8_t> regime;           // (m) -, pair k in the last step: bit 0 Coulomb cap, bit 1 rolling cap;
+                                              //   or k_apart
+  std::vector<std::uint8_t> order;            // (m) -, per block, a permutation of its pair offsets 0..63
+  std::vector<std::uint8_t> stale;            // (blocks) -, 1: a regime in the block changed, sort it again
   std::vector<std::uint8_t> sorted;  // (blocks) -, 1: visit in `order`; 0: all touching, none capped: array order
   std::uint64_t generation = ~std::uint64_t{0};  // -, PairConstants::generation the regimes describe
 };

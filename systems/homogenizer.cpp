@@ -185,8 +185,8 @@ Measures measure(const Model& model, const State& state, Executor& exec, const M
   double net = 0.0, kinetic = 0.0;
   for (std::size_t k = 0; k < n; ++k) {
     net += p.force[k].norm();
-    kinetic += 0.5 * p.mass[k] * p.velocity[k].squaredNorm() +
-               0.5 * p.angular_velocity[k].squaredNorm() / p.inv_inertia[k];
+    kinetic +=
+        0.5 * p.mass[k] * p.velocity[k].squaredNorm() + 0.5 * p.angular_velocity[k].squaredNorm() / p.inv_inertia[k];
   }
   m.kinetic_energy = kinetic;
   m.unbalanced = force_sum > 0.0 ? (net / static_cast<double>(n)) / (force_sum / static_cast<double>(m.contacts)) : 0.0;

@@ -21,7 +21,7 @@ namespace sandcell {
 /// component `stress`).
 struct MeasuredStress {
   static constexpr Component component = Component::stress;
-  Mat3 stress = Mat3::Zero();  // (3,3) Pa, symmetrized, compression positive (docs/physics.md section 5)
+  Mat3 stress = Mat3::Zero();              // (3,3) Pa, symmetrized, compression positive (docs/physics.md section 5)
   std::uint64_t step = ~std::uint64_t{0};  // clock step at which it was measured (none: max)
 };
 
@@ -58,26 +58,26 @@ struct Measures {
   Mat3 stress = Mat3::Zero();          // Pa, symmetrized contact (+ kinetic, if asked) stress
   Mat3 contact_stress = Mat3::Zero();  // Pa, contact part only
   StressInvariants inv;
-  Vec3 strain = Vec3::Zero();          // -, eps_k = -ln(L_k / L0_k)
+  Vec3 strain = Vec3::Zero();              // -, eps_k = -ln(L_k / L0_k)
   Vec3 strain_engineering = Vec3::Zero();  // -, 1 - L_k / L0_k
-  Vec3 strain_rate = Vec3::Zero();     // 1/s, -D_kk
-  double eps_v = 0.0;                  // -, eps1 + eps2 + eps3
-  double eps_q = 0.0;                  // -, sqrt(2)/3 sqrt((e1-e2)^2 + (e2-e3)^2 + (e3-e1)^2)
-  double void_ratio = 0.0;             // -, V / V_s - 1
-  double solid_fraction = 0.0;         // -, V_s / V
-  std::size_t contacts = 0;            // touching pairs (overlap > 0)
-  std::size_t rattlers = 0;            // particles with fewer than 2 contacts
-  double z = 0.0;                      // -, 2 N_c / N_p
-  double z_mech = 0.0;                 // -, 2 N_c' / N_p' without rattlers (and their contacts)
-  Mat3 fabric = Mat3::Zero();          // -, <n (x) n> over touching contacts
-  double unbalanced = 0.0;             // -, mean |F_net| / mean |f_contact|
-  double kinetic_energy = 0.0;         // J, fluctuating translational + rotational
-  double elastic_energy = 0.0;         // J, stored in the contacts: normal Hertz 8/15 E* sqrt(R*) delta^(5/2),
-                                       // tangential |F_t^el|^2 / (2 k_t), rolling |M|^2 / (2 k_r)
-  double max_overlap_ratio = 0.0;      // -, largest delta / min(R_i, R_j) over touching contacts
-  double inertial_number = 0.0;        // -, (eps_dot_1 - eps_dot_3) d50 sqrt(rho / p)
-  double inertial_number_axial = 0.0;  // -, |eps_dot_1| d50 sqrt(rho / p): axis 1 alone, the form a set
-                                       // inertial number (ServoSettings::inertial_number) controls
+  Vec3 strain_rate = Vec3::Zero();         // 1/s, -D_kk
+  double eps_v = 0.0;                      // -, eps1 + eps2 + eps3
+  double eps_q = 0.0;                      // -, sqrt(2)/3 sqrt((e1-e2)^2 + (e2-e3)^2 + (e3-e1)^2)
+  double void_ratio = 0.0;                 // -, V / V_s - 1
+  double solid_fraction = 0.0;             // -, V_s / V
+  std::size_t contacts = 0;                // touching pairs (overlap > 0)
+  std::size_t rattlers = 0;                // particles with fewer than 2 contacts
+  double z = 0.0;                          // -, 2 N_c / N_p
+  double z_mech = 0.0;                     // -, 2 N_c' / N_p' without rattlers (and their contacts)
+  Mat3 fabric = Mat3::Zero();              // -, <n (x) n> over touching contacts
+  double unbalanced = 0.0;                 // -, mean |F_net| / mean |f_contact|
+  double kinetic_energy = 0.0;             // J, fluctuating translational + rotational
+  double elastic_energy = 0.0;             // J, stored in the contacts: normal Hertz 8/15 E* sqrt(R*) delta^(5/2),
+                                           // tangential |F_t^el|^2 / (2 k_t), rolling |M|^2 / (2 k_r)
+  double max_overlap_ratio = 0.0;          // -, largest delta / min(R_i, R_j) over touching contacts
+  double inertial_number = 0.0;            // -, (eps_dot_1 - eps_dot_3) d50 sqrt(rho / p)
+  double inertial_number_axial = 0.0;      // -, |eps_dot_1| d50 sqrt(rho / p): axis 1 alone, the form a set
+                                           // inertial number (ServoSettings::inertial_number) controls
 };
 
 struct MeasureOptions {

@@ -13,8 +13,7 @@ constexpr std::size_t k_write_ahead = 8;
 
 // Half kick of linear and angular velocity over [b, e).
 void half_kick(double half_dt, const Vec3* __restrict f, const Vec3* __restrict t, const double* __restrict m,
-               const double* __restrict inv_i, Vec3* __restrict v, Vec3* __restrict w, std::size_t b,
-               std::size_t e) {
+               const double* __restrict inv_i, Vec3* __restrict v, Vec3* __restrict w, std::size_t b, std::size_t e) {
   for (std::size_t k = b; k < e; ++k) {
     v[k] += f[k] * (half_dt / m[k]);
     w[k] += t[k] * (half_dt * inv_i[k]);
@@ -28,8 +27,8 @@ void half_kick(double half_dt, const Vec3* __restrict f, const Vec3* __restrict 
 // closing kick) go without the prefetch.
 template <bool Exclusive>
 void two_kicks_drift(double dt, const Vec3& rate, const Vec3* __restrict f, const Vec3* __restrict t,
-                     const double* __restrict m, const double* __restrict inv_i, Vec3* __restrict x,
-                     Vec3* __restrict v, Vec3* __restrict w, std::size_t b, std::size_t e) {
+                     const double* __restrict m, const double* __restrict inv_i, Vec3* __restrict x, Vec3* __restrict v,
+                     Vec3* __restrict w, std::size_t b, std::size_t e) {
   const double half_dt = 0.5 * dt;
   for (std::size_t k = b; k < e; ++k) {
     if (k + k_write_ahead < e) {
@@ -75,8 +74,10 @@ void IntegrateInitial::run(const Model& model, State& state, Scratch& scratch, E
     kick.pending = false;
     const bool exclusive = cpu_has_prefetchw();
     exec.parallel_for(position.size(), k_particle_grain, [&](std::size_t b, std::size_t e) {
-      if (exclusive) two_kicks_drift<true>(dt, rate, f, t, m, inv_i, x, v, w, b, e);
-      else two_kicks_drift<false>(dt, rate, f, t, m, inv_i, x, v, w, b, e);
+      if (exclusive)
+        two_kicks_drift<true>(dt, rate, f, t, m, inv_i, x, v, w, b, e);
+      else
+        two_kicks_drift<false>(dt, rate, f, t, m, inv_i, x, v, w, b, e);
     });
   } else {
     exec.parallel_for(position.size(), k_particle_grain, [&](std::size_t b, std::size_t e) {

@@ -29,9 +29,8 @@ struct IntegrateInitial {
   static constexpr std::string_view name = "integrate_initial";
   static constexpr ComponentMask reads = mask_of({Component::particle_force, Component::particle_torque,
                                                   Component::particle_mass, Component::particle_inv_inertia});
-  static constexpr ComponentMask writes =
-      mask_of({Component::particle_position, Component::particle_velocity,
-               Component::particle_angular_velocity, Component::cell});
+  static constexpr ComponentMask writes = mask_of({Component::particle_position, Component::particle_velocity,
+                                                   Component::particle_angular_velocity, Component::cell});
   static void run(const Model& model, State& state, Scratch& scratch, Executor& exec);
 };
 
@@ -50,8 +49,7 @@ struct IntegrateFinal {
   static constexpr std::string_view deferred_to = "integrate_initial";
   static constexpr ComponentMask reads = mask_of({Component::particle_force, Component::particle_torque,
                                                   Component::particle_mass, Component::particle_inv_inertia});
-  static constexpr ComponentMask writes =
-      mask_of({Component::particle_velocity, Component::particle_angular_velocity});
+  static constexpr ComponentMask writes = mask_of({Component::particle_velocity, Component::particle_angular_velocity});
   static void run(const Model& model, State& state, Scratch& scratch, Executor& exec);
   /// Applies a kick left pending (the end of a World::step_until call).
   static void flush(const Model& model, State& state, Scratch& scratch, Executor& exec);

@@ -37,9 +37,9 @@ struct GatherIndex {
 /// division per pair and step.
 struct PairConstants {
   static constexpr Component component = Component::pair_constants;
-  std::vector<double> r_i, r_j;  // (m) m, radii of the two spheres; broadphase
-  std::vector<double> r_star;    // (m) m, R* = R_i R_j / (R_i + R_j); broadphase
-  std::vector<double> m_star;    // (m) kg, m* = m_i m_j / (m_i + m_j); broadphase
+  std::vector<double> r_i, r_j;          // (m) m, radii of the two spheres; broadphase
+  std::vector<double> r_star;            // (m) m, R* = R_i R_j / (R_i + R_j); broadphase
+  std::vector<double> m_star;            // (m) kg, m* = m_i m_j / (m_i + m_j); broadphase
   std::vector<std::uint8_t> image_code;  // (m) -, the image (each of -1, 0, 1) as 9 (I_z+1) + 3 (I_y+1) + I_x+1
   std::uint64_t generation = 0;          // -, counts rebuilds: per-pair hints kept elsewhere know the list changed
 };

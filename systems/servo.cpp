@@ -44,9 +44,10 @@ Vec3 servo_strain_rates(const ServoSettings& servo, const Vec3& sigma, Vec3* int
   const double floor = 1e-3 * stress_scale(servo);
   // At a set inertial number the strain-controlled rates follow the measured mean stress:
   // |eps_dot| d50 sqrt(rho / p) = I, p floored like the errors' normalization.
-  const double scale = servo.inertial_number > 0.0
-                           ? servo.inertial_number * std::sqrt(std::max(sigma.mean(), floor) / servo.density) / servo.d50
-                           : 1.0;
+  const double scale =
+      servo.inertial_number > 0.0
+          ? servo.inertial_number * std::sqrt(std::max(sigma.mean(), floor) / servo.density) / servo.d50
+          : 1.0;
   Vec3 rate;
   for (int k = 0; k < 3; ++k) {
     if (servo.control[k] == AxisControl::strain) {

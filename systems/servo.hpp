@@ -32,7 +32,7 @@ Vec3 path_targets(const ServoSettings& servo, double sigma1);
 /// Strain-controlled axes get servo.strain_rate (times I sqrt(p/rho) / d50 with p the mean of
 /// `sigma` when servo.inertial_number = I > 0), times time / servo.ramp_time while time (s, the
 /// clock's) is below a nonzero ramp_time.
-Vec3 servo_strain_rates(const ServoSettings& servo, const Vec3& sigma, Vec3* integral = nullptr,
-                        double interval = 0.0, double time = 0.0);
+Vec3 servo_strain_rates(const ServoSettings& servo, const Vec3& sigma, Vec3* integral = nullptr, double interval = 0.0,
+                        double time = 0.0);
 
 }  // namespace sandcell

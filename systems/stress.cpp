@@ -11,8 +11,7 @@ Mat3 contact_stress_sum(const ContactPairs& pairs, const std::vector<Vec3>& forc
         Mat3 s = Mat3::Zero();
         for (std::size_t k = b; k < e; ++k) {
           const Image& img = pairs.image[k];
-          const Vec3 r = x[pairs.i[k]] - x[pairs.j[k]] -
-                         image_offset(img, length);
+          const Vec3 r = x[pairs.i[k]] - x[pairs.j[k]] - image_offset(img, length);
           s += force[k] * r.transpose();
         }
         return s;

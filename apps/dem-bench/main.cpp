@@ -167,7 +167,8 @@ int run_scaling(const Model& model, const Packing& packing, long steps, int thre
   const auto timed = [&](World& w) { return rate(1, [&] { advance(w, steps, deform, lz0); }); };
   std::vector<std::unique_ptr<World>> jobs;
   for (int t = 0; t < threads; ++t)
-    jobs.push_back(std::make_unique<World>(model, make_state(model, packing), systems_for(model), ExecutorConfig{Backend::tbb, 1}));
+    jobs.push_back(std::make_unique<World>(model, make_state(model, packing), systems_for(model),
+                                           ExecutorConfig{Backend::tbb, 1}));
   std::vector<double> jobs_ratio;
   const auto timed_jobs = [&] {
     return rate(jobs.size(), [&] {
@@ -200,14 +201,16 @@ int run_scaling(const Model& model, const Packing& packing, long steps, int thre
   bool same = state_digest(many.state()) == digest;
   for (const auto& w : jobs) same = same && state_digest(w->state()) == digest;
   if (json) {
-    std::printf("{\"particles\": %.0f, \"steps_per_round\": %ld, \"rounds\": %d, \"threads\": %d, \"deform\": %.9g, "
-                "\"median_one\": %.6g, \"median_many\": %.6g, \"median_ratio\": %.6g, \"ratios\": [",
-                n, steps, rounds, threads, deform, median(rate_one), median(rate_many), median(ratio));
+    std::printf(
+        "{\"particles\": %.0f, \"steps_per_round\": %ld, \"rounds\": %d, \"threads\": %d, \"deform\": %.9g, "
+        "\"median_one\": %.6g, \"median_many\": %.6g, \"median_ratio\": %.6g, \"ratios\": [",
+        n, steps, rounds, threads, deform, median(rate_one), median(rate_many), median(ratio));
     for (std::size_t k = 0; k < ratio.size(); ++k) std::printf("%s%.6g", k ? ", " : "", ratio[k]);
-    std::printf("], \"p10_one\": %.6g, \"p90_one\": %.6g, \"p10_many\": %.6g, \"p90_many\": %.6g, \"p10_ratio\": %.6g, "
-                "\"p90_ratio\": %.6g, \"p10_many_over_median_one\": %.6g",
-                quantile(rate_one, 0.1), quantile(rate_one, 0.9), quantile(rate_many, 0.1), quantile(rate_many, 0.9),
-                quantile(ratio, 0.1), quantile(ratio, 0.9), quantile(rate_many, 0.1) / median(rate_one));
+    std::printf(
+        "], \"p10_one\": %.6g, \"p90_one\": %.6g, \"p10_many\": %.6g, \"p90_many\": %.6g, \"p10_ratio\": %.6g, "
+        "\"p90_ratio\": %.6g, \"p10_many_over_median_one\": %.6g",
+        quantile(rate_one, 0.1), quantile(rate_one, 0.9), quantile(rate_many, 0.1), quantile(rate_many, 0.9),
+        quantile(ratio, 0.1), quantile(ratio, 0.9), quantile(rate_many, 0.1) / median(rate_one));
     std::printf(", \"jobs_median_ratio\": %.6g, \"stream_median_ratio\": %.6g", median(jobs_ratio),
                 median(stream_ratio));
     // Every round's figures side by side (--probe adds the machine's, probe.hpp).
@@ -228,8 +231,8 @@ int run_scaling(const Model& model, const Packing& packing, long steps, int thre
   } else {
     std::printf("thread scaling: %.0f particles, %ld steps x %d rounds, 1 and %d threads alternating%s\n", n, steps,
                 rounds, threads, deform > 0.0 ? " (scene B)" : "");
-    std::printf("  1 thread    p10 / median / p90 %8.3f / %8.3f / %8.3f M particle-steps/s\n", quantile(rate_one, 0.1) / 1e6,
-                median(rate_one) / 1e6, quantile(rate_one, 0.9) / 1e6);
+    std::printf("  1 thread    p10 / median / p90 %8.3f / %8.3f / %8.3f M particle-steps/s\n",
+                quantile(rate_one, 0.1) / 1e6, median(rate_one) / 1e6, quantile(rate_one, 0.9) / 1e6);
     std::printf("  %d threads   p10 / median / p90 %8.3f / %8.3f / %8.3f M particle-steps/s\n", threads,
                 quantile(rate_many, 0.1) / 1e6, median(rate_many) / 1e6, quantile(rate_many, 0.9) / 1e6);
     std::printf("  %d-thread p10 / 1-thread median %.3f\n", threads, quantile(rate_many, 0.1) / median(rate_one));
@@ -241,8 +244,10 @@ int run_scaling(const Model& model, const Packing& packing, long steps, int thre
     std::printf("  machine     y += a x over 2 x 4 MiB, 1 -> %d threads in the same rounds: median ratio %.3f\n",
                 threads, median(stream_ratio));
     if (probe) {
-      std::printf("  rounds      1-thread, %d-thread M/s, ratio; without the engine: %d worlds at once, streaming, "
-                  "register-only (ratios); ping-pong ns; steal; other processes (CPUs)\n", threads, threads);
+      std::printf(
+          "  rounds      1-thread, %d-thread M/s, ratio; without the engine: %d worlds at once, streaming, "
+          "register-only (ratios); ping-pong ns; steal; other processes (CPUs)\n",
+          threads, threads);
       for (std::size_t k = 0; k < ratio.size(); ++k)
         std::printf("    %3zu  %7.3f %7.3f %5.2f   %5.2f %5.2f %5.2f   %7.1f  %5.3f  %5.2f\n", k + 1, rate_one[k] / 1e6,
                     rate_many[k] / 1e6, ratio[k], jobs_ratio[k], stream_ratio[k], alu_ratio[k], pingpong[k], steal[k],
@@ -323,42 +328,65 @@ int main(int argc, char** argv) {
       if (a + 1 >= argc) usage_error(std::string(arg) + " needs a value");
       return argv[++a];
     };
-    if (arg == "--scene") scene = value();
-    else if (arg == "--steps") steps = static_cast<long>(parse_number("--steps", value(), 0, 1e9));
-    else if (arg == "--threads") threads = static_cast<int>(parse_number("--threads", value(), 1, 1024));
-    else if (arg == "--deform") deform = parse_number("--deform", value(), 0, 1e6);
-    else if (arg == "--compat") model.contact.liggghts_compat = true;
-    else if (arg == "--sort") sort_interval = static_cast<long>(parse_number("--sort", value(), 0, 1e9));
-    else if (arg == "--serial") serial = true;
-    else if (arg == "--json") json = true;
-    else if (arg == "--costs") costs = true;
-    else if (arg == "--scaling") scaling = true;
-    else if (arg == "--probe") probe = true;
+    if (arg == "--scene")
+      scene = value();
+    else if (arg == "--steps")
+      steps = static_cast<long>(parse_number("--steps", value(), 0, 1e9));
+    else if (arg == "--threads")
+      threads = static_cast<int>(parse_number("--threads", value(), 1, 1024));
+    else if (arg == "--deform")
+      deform = parse_number("--deform", value(), 0, 1e6);
+    else if (arg == "--compat")
+      model.contact.liggghts_compat = true;
+    else if (arg == "--sort")
+      sort_interval = static_cast<long>(parse_number("--sort", value(), 0, 1e9));
+    else if (arg == "--serial")
+      serial = true;
+    else if (arg == "--json")
+      json = true;
+    else if (arg == "--costs")
+      costs = true;
+    else if (arg == "--scaling")
+      scaling = true;
+    else if (arg == "--probe")
+      probe = true;
     else if (arg == "--partition") {
       const std::string_view v = value();
-      if (v == "dynamic") partition = Partition::dynamic;
-      else if (v == "fixed") partition = Partition::fixed;
-      else usage_error("--partition = '" + std::string(v) + "': allowed dynamic, fixed");
-    }
-    else if (arg == "--rounds") rounds = static_cast<int>(parse_number("--rounds", value(), 1, 1000));
+      if (v == "dynamic")
+        partition = Partition::dynamic;
+      else if (v == "fixed")
+        partition = Partition::fixed;
+      else
+        usage_error("--partition = '" + std::string(v) + "': allowed dynamic, fixed");
+    } else if (arg == "--rounds")
+      rounds = static_cast<int>(parse_number("--rounds", value(), 1, 1000));
     else if (arg == "--rolling") {
       const std::string_view v = value();
-      if (v == "none") model.contact.rolling = RollingModel::none;
-      else if (v == "epsd2") model.contact.rolling = RollingModel::epsd2;
-      else if (v == "epsd") model.contact.rolling = RollingModel::epsd;
-      else if (v == "cdt") model.contact.rolling = RollingModel::cdt;
-      else usage_error("--rolling = '" + std::string(v) + "': allowed none, epsd2, epsd, cdt");
+      if (v == "none")
+        model.contact.rolling = RollingModel::none;
+      else if (v == "epsd2")
+        model.contact.rolling = RollingModel::epsd2;
+      else if (v == "epsd")
+        model.contact.rolling = RollingModel::epsd;
+      else if (v == "cdt")
+        model.contact.rolling = RollingModel::cdt;
+      else
+        usage_error("--rolling = '" + std::string(v) + "': allowed none, epsd2, epsd, cdt");
     } else if (arg == "--tangential") {
       const std::string_view v = value();
-      if (v == "history") model.contact.tangential = TangentialModel::history;
-      else if (v == "incremental") model.contact.tangential = TangentialModel::incremental;
-      else usage_error("--tangential = '" + std::string(v) + "': allowed history, incremental");
+      if (v == "history")
+        model.contact.tangential = TangentialModel::history;
+      else if (v == "incremental")
+        model.contact.tangential = TangentialModel::incremental;
+      else
+        usage_error("--tangential = '" + std::string(v) + "': allowed history, incremental");
     } else if (arg == "--help" || arg == "-h") {
-      std::printf("usage: dem-bench [--scene FILE] [--steps N] [--threads T] [--deform RATE] [--rolling none|epsd2|epsd|cdt]\n"
-                  "                 [--tangential history|incremental] [--compat] [--sort STEPS] [--serial] [--partition dynamic|fixed] [--json]\n"
-                  "       dem-bench --costs [--scene FILE] [--steps N] [--threads T] [--rounds R]\n"
-                  "       dem-bench --probe [--threads T]   (the machine alone: register-only scaling, ping-pong)\n"
-                  "       dem-bench --scaling [--scene FILE] [--steps N] [--threads T] [--rounds R] [--deform RATE] [--partition P] [--probe] [--json]\n");
+      std::printf(
+          "usage: dem-bench [--scene FILE] [--steps N] [--threads T] [--deform RATE] [--rolling none|epsd2|epsd|cdt]\n"
+          "                 [--tangential history|incremental] [--compat] [--sort STEPS] [--serial] [--partition dynamic|fixed] [--json]\n"
+          "       dem-bench --costs [--scene FILE] [--steps N] [--threads T] [--rounds R]\n"
+          "       dem-bench --probe [--threads T]   (the machine alone: register-only scaling, ping-pong)\n"
+          "       dem-bench --scaling [--scene FILE] [--steps N] [--threads T] [--rounds R] [--deform RATE] [--partition P] [--probe] [--json]\n");
       return 0;
     } else {
       usage_error("unknown argument '" + std::string(arg) + "' (see --help)");
@@ -411,16 +439,17 @@ int main(int argc, char** argv) {
   const unsigned long long digest = state_digest(world.state());
 
   if (json) {
-    std::printf("{\"scene\": \"%s\", \"arch\": \"%s\", \"particles\": %zu, \"steps\": %ld, \"threads\": %d, \"backend\": \"%s\",\n"
-                " \"deform\": %.6g, \"compat\": %s, \"wall_s\": %.6f, \"particle_steps_per_s\": %.6e,\n"
-                " \"contacts_per_particle_start\": %.6f, \"contacts_per_particle\": %.6f, \"rebuilds\": %llu,\n"
-                " \"peak_mib\": %.1f, \"mean_stress_start_pa\": %.6e, \"mean_stress_pa\": %.6e,\n"
-                " \"stress_pa\": [%.6e, %.6e, %.6e, %.6e, %.6e, %.6e], \"lz\": %.9f, \"digest\": \"%016llx\",\n"
-                " \"system_s\": {",
-                scene.c_str(), std::string(build_arch()).c_str(), n, steps, world.executor().threads(), serial ? "serial" : "tbb", deform,
-                model.contact.liggghts_compat ? "true" : "false", wall, rate, 2.0 * c0 / n, 2.0 * c1 / n,
-                static_cast<unsigned long long>(builds), peak_mib, s0.trace() / 3, s1.trace() / 3, s1(0, 0), s1(1, 1),
-                s1(2, 2), s1(0, 1), s1(0, 2), s1(1, 2), world.state().cell.length[2], digest);
+    std::printf(
+        "{\"scene\": \"%s\", \"arch\": \"%s\", \"particles\": %zu, \"steps\": %ld, \"threads\": %d, \"backend\": \"%s\",\n"
+        " \"deform\": %.6g, \"compat\": %s, \"wall_s\": %.6f, \"particle_steps_per_s\": %.6e,\n"
+        " \"contacts_per_particle_start\": %.6f, \"contacts_per_particle\": %.6f, \"rebuilds\": %llu,\n"
+        " \"peak_mib\": %.1f, \"mean_stress_start_pa\": %.6e, \"mean_stress_pa\": %.6e,\n"
+        " \"stress_pa\": [%.6e, %.6e, %.6e, %.6e, %.6e, %.6e], \"lz\": %.9f, \"digest\": \"%016llx\",\n"
+        " \"system_s\": {",
+        scene.c_str(), std::string(build_arch()).c_str(), n, steps, world.executor().threads(),
+        serial ? "serial" : "tbb", deform, model.contact.liggghts_compat ? "true" : "false", wall, rate, 2.0 * c0 / n,
+        2.0 * c1 / n, static_cast<unsigned long long>(builds), peak_mib, s0.trace() / 3, s1.trace() / 3, s1(0, 0),
+        s1(1, 1), s1(2, 2), s1(0, 1), s1(0, 2), s1(1, 2), world.state().cell.length[2], digest);
     for (std::size_t k = 0; k < graph.size(); ++k)
       std::printf("%s\"%s\": %.6f", k ? ", " : "", graph.system(k).name.c_str(), graph.timers()[k]);
     std::printf("}}\n");

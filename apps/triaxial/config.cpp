@@ -78,16 +78,20 @@ class Section {
     const toml::node* node = get(key);
     if (!node) return;
     double v = 0.0;
-    if (auto f = node->value_exact<double>()) v = *f;
-    else if (auto i = node->value_exact<std::int64_t>()) v = static_cast<double>(*i);
-    else fail(key, describe(*node), "expected a number, " + allowed);
+    if (auto f = node->value_exact<double>())
+      v = *f;
+    else if (auto i = node->value_exact<std::int64_t>())
+      v = static_cast<double>(*i);
+    else
+      fail(key, describe(*node), "expected a number, " + allowed);
     if (!(v >= lo && v <= hi) || !std::isfinite(v)) fail(key, num(v), allowed);
     out = v;
   }
   void positive(const std::string& key, double& out, const std::string& units) {
     number(key, out, std::nextafter(0.0, 1.0), HUGE_VAL, "must be > 0 " + units);
   }
-  void integer(const std::string& key, std::uint64_t& out, std::uint64_t lo, std::uint64_t hi, const std::string& allowed) {
+  void integer(const std::string& key, std::uint64_t& out, std::uint64_t lo, std::uint64_t hi,
+               const std::string& allowed) {
     const toml::node* node = get(key);
     if (!node) return;
     auto i = node->value_exact<std::int64_t>();
@@ -180,10 +184,14 @@ class Section {
   }
   static std::string describe(const toml::node& node) {
     std::ostringstream out;
-    if (node.is_string()) out << '"' << *node.value<std::string>() << '"';
-    else if (node.is_table()) out << "(a table)";
-    else if (node.is_array()) out << "(an array)";
-    else node.visit([&](const auto& v) { out << v; });
+    if (node.is_string())
+      out << '"' << *node.value<std::string>() << '"';
+    else if (node.is_table())
+      out << "(a table)";
+    else if (node.is_array())
+      out << "(an array)";
+    else
+      node.visit([&](const auto& v) { out << v; });
     // A value is echoed in one-line messages: a long one is cut.
     std::string text = out.str();
     if (text.size() > 60) text = text.substr(0, 57) + "...";
@@ -223,12 +231,14 @@ toml::table parse_toml(const std::string& text, const std::string& source) {
 
 // Every top-level key must be one of the known tables.
 void check_sections(const toml::table& root, const std::string& source) {
-  static const char* const sections[] = {"sample", "material", "contact", "time", "prepare", "shear", "tests", "output"};
+  static const char* const sections[] = {"sample",  "material", "contact", "time",
+                                         "prepare", "shear",    "tests",   "output"};
   for (const auto& [key, node] : root) {
     bool known = false;
     for (const char* s : sections) known = known || key.str() == s;
     if (!known || !node.is_table())
-      throw ConfigError(source + ": [" + std::string(key.str()) + "]: " + (known ? "must be a table" : "unknown section") +
+      throw ConfigError(source + ": [" + std::string(key.str()) +
+                        "]: " + (known ? "must be a table" : "unknown section") +
                         "; allowed sections: [sample] [material] [contact] [time] [prepare] [shear] [tests] [output]");
   }
 }
@@ -280,8 +290,9 @@ void parse_sample(const toml::table& root, const std::string& source, SampleConf
   if (g.sizes.kind == SizeDistribution::Kind::gradation && g.sizes.table.empty())
     s.fail("gradation", "(missing)", "required when distribution = \"gradation\"");
   if (g.sizes.kind == SizeDistribution::Kind::uniform && !g.sizes.table.empty())
-    s.fail("gradation", "(" + std::to_string(g.sizes.table.size()) + " rows)",
-           "given with distribution = \"uniform\", which ignores it; allowed: distribution = \"gradation\", or no gradation");
+    s.fail(
+        "gradation", "(" + std::to_string(g.sizes.table.size()) + " rows)",
+        "given with distribution = \"uniform\", which ignores it; allowed: distribution = \"gradation\", or no gradation");
   if (sample.packing_file.empty()) {
     try {
       validate(g);
@@ -311,7 +322,9 @@ void parse_contact(const toml::table& root, const std::string& source, ContactSe
   s.choice("tangential", k.tangential,
            {{"history", TangentialModel::history}, {"incremental", TangentialModel::incremental}});
   s.choice("rolling", k.rolling,
-           {{"epsd2", RollingModel::epsd2}, {"epsd", RollingModel::epsd}, {"cdt", RollingModel::cdt},
+           {{"epsd2", RollingModel::epsd2},
+            {"epsd", RollingModel::epsd},
+            {"cdt", RollingModel::cdt},
             {"none", RollingModel::none}});
   s.number("rolling_damping", k.rolling_damping, 0.0, 10.0, "must be in [0, 10]");
   s.number("skin", k.skin, 0.0, 1.0, "must be in [0, 1] m (0: 0.1 x the smallest diameter)");
@@ -325,7 +338,8 @@ void parse_time(const toml::table& root, const std::string& source, double& dt_f
   Section s = section(root, "time", source);
   // Above one Rayleigh time an explicit step through a dense Hertzian packing is unstable
   // (the contact period at overlaps of ~1e-3 R is about 1-3 Rayleigh times).
-  s.number("dt_fraction", dt_fraction, 1e-6, 1.0, "must be in (0, 1] (fraction of the Rayleigh time; stability limit 1)");
+  s.number("dt_fraction", dt_fraction, 1e-6, 1.0,
+           "must be in (0, 1] (fraction of the Rayleigh time; stability limit 1)");
   s.check_unknown();
 }
 
@@ -341,7 +355,8 @@ void parse_prepare(const toml::table& root, const std::string& source, PrepareCo
   s.integer("check_interval", p.check_interval, 1, 1'000'000'000, "must be an integer >= 1 step");
   s.integer("max_steps", p.max_steps, 1, UINT64_MAX, "must be an integer >= 1 step");
   s.boolean("chain", p.chain);
-  s.number("dt_fraction", p.dt_fraction, 1e-6, 1.0, "must be in (0, 1] (fraction of the Rayleigh time; default time.dt_fraction)");
+  s.number("dt_fraction", p.dt_fraction, 1e-6, 1.0,
+           "must be in (0, 1] (fraction of the Rayleigh time; default time.dt_fraction)");
   s.check_unknown();
 }
 
@@ -382,7 +397,8 @@ void check_contact_overlap(Section& s, const Material& mat, const std::vector<do
     const double ratio = std::pow(3.0 * std::sqrt(2.0) * std::numbers::pi * p0[k] / (0.6 * 6.0 * e_star), 2.0 / 3.0);
     if (ratio > 0.1)
       s.fail("p0[" + std::to_string(k) + "]", num(p0[k]),
-             "with material.young = " + num(mat.young) + " Pa the mean contact overlap would be ~" + num(std::round(ratio * 100.0) / 100.0) +
+             "with material.young = " + num(mat.young) + " Pa the mean contact overlap would be ~" +
+                 num(std::round(ratio * 100.0) / 100.0) +
                  " of the radius (Hertz, dense sample), beyond the small-overlap contact law (allowed: < 0.1): "
                  "raise material.young or lower p0");
   }
@@ -393,16 +409,22 @@ std::vector<ShearPath> parse_paths(Section& s, const std::vector<std::string>& n
   std::vector<ShearPath> parsed;
   for (std::size_t k = 0; k < names.size(); ++k) {
     const std::string& n = names[k];
-    if (n == "constant_p") parsed.push_back(ShearPath::constant_p);
-    else if (n == "constant_sigma3") parsed.push_back(ShearPath::constant_sigma3);
-    else if (n == "strain") parsed.push_back(ShearPath::strain);
-    else s.fail("path[" + std::to_string(k) + "]", "\"" + n + "\"", "allowed: \"constant_p\" \"constant_sigma3\" \"strain\"");
+    if (n == "constant_p")
+      parsed.push_back(ShearPath::constant_p);
+    else if (n == "constant_sigma3")
+      parsed.push_back(ShearPath::constant_sigma3);
+    else if (n == "strain")
+      parsed.push_back(ShearPath::strain);
+    else
+      s.fail("path[" + std::to_string(k) + "]", "\"" + n + "\"",
+             "allowed: \"constant_p\" \"constant_sigma3\" \"strain\"");
   }
   return parsed;
 }
 
 // The campaign: p0 x path x b (one b for the strain path), in that order, each name once.
-std::vector<TestSpec> campaign(const std::vector<double>& p0, const std::vector<ShearPath>& paths, const std::vector<double>& b) {
+std::vector<TestSpec> campaign(const std::vector<double>& p0, const std::vector<ShearPath>& paths,
+                               const std::vector<double>& b) {
   std::vector<TestSpec> tests;
   for (double p : p0)
     for (ShearPath path : paths)
@@ -412,8 +434,11 @@ std::vector<TestSpec> campaign(const std::vector<double>& p0, const std::vector<
         t.p0 = p;
         t.b = bv;
         char name[96];
-        if (path == ShearPath::strain) std::snprintf(name, sizeof name, "strain-p0_%gkPa", p / 1e3);
-        else std::snprintf(name, sizeof name, "%s-b%.2f-p0_%gkPa", path == ShearPath::constant_p ? "p" : "s3", bv, p / 1e3);
+        if (path == ShearPath::strain)
+          std::snprintf(name, sizeof name, "strain-p0_%gkPa", p / 1e3);
+        else
+          std::snprintf(name, sizeof name, "%s-b%.2f-p0_%gkPa", path == ShearPath::constant_p ? "p" : "s3", bv,
+                        p / 1e3);
         t.name = name;
         bool duplicate = false;
         for (const TestSpec& other : tests) duplicate = duplicate || other.name == t.name;
@@ -446,8 +471,10 @@ void parse_tests(const toml::table& root, const std::string& source, Config& c) 
 void parse_output(const toml::table& root, const std::string& source, OutputConfig& o) {
   Section s = section(root, "output", source);
   s.integer("series_interval", o.series_interval, 1, 1'000'000'000, "must be an integer >= 1 step");
-  s.integer("snapshot_interval", o.snapshot_interval, 0, UINT64_MAX, "must be an integer >= 0 steps (0: stage ends only)");
-  s.integer("checkpoint_interval", o.checkpoint_interval, 0, UINT64_MAX, "must be an integer >= 0 steps (0: by time only)");
+  s.integer("snapshot_interval", o.snapshot_interval, 0, UINT64_MAX,
+            "must be an integer >= 0 steps (0: stage ends only)");
+  s.integer("checkpoint_interval", o.checkpoint_interval, 0, UINT64_MAX,
+            "must be an integer >= 0 steps (0: by time only)");
   s.number("checkpoint_minutes", o.checkpoint_minutes, 0.0, 1e6, "must be >= 0 minutes (0: by steps only)");
   s.integer("flush_interval", o.flush_interval, 1, 1'000'000, "must be an integer >= 1 row");
   s.boolean("plot", o.plot);
@@ -460,10 +487,12 @@ void check_shear_for_tests(const Config& c, const std::string& source) {
   bool stress_path = false;
   for (const TestSpec& t : c.tests) stress_path = stress_path || t.path != ShearPath::strain;
   if (c.shear.strain_rate > 0.0 && c.shear.inertial_number > 0.0)
-    throw ConfigError(source + ": shear.strain_rate = " + num(c.shear.strain_rate) + " and shear.inertial_number = " +
-                      num(c.shear.inertial_number) + ": give exactly one of the two (the axial rate, or the inertial number it follows)");
+    throw ConfigError(source + ": shear.strain_rate = " + num(c.shear.strain_rate) +
+                      " and shear.inertial_number = " + num(c.shear.inertial_number) +
+                      ": give exactly one of the two (the axial rate, or the inertial number it follows)");
   if (stress_path && !(c.shear.strain_rate > 0.0) && !(c.shear.inertial_number > 0.0))
-    throw ConfigError(source + ": shear.strain_rate and shear.inertial_number: neither is given; the stress paths need "
+    throw ConfigError(source +
+                      ": shear.strain_rate and shear.inertial_number: neither is given; the stress paths need "
                       "exactly one (e.g. strain_rate = 1.0 in 1/s, or inertial_number = 2e-3)");
   for (const TestSpec& t : c.tests) {
     if (t.path == ShearPath::strain && c.shear.steps == 0)
@@ -473,8 +502,8 @@ void check_shear_for_tests(const Config& c, const std::string& source) {
                         ": the ramp applies to the stress paths' axial rate; path \"strain\" allows 0 only");
   }
   if (c.shear.ramp_strain >= c.shear.max_axial_strain)
-    throw ConfigError(source + ": shear.ramp_strain = " + num(c.shear.ramp_strain) + ": must be below shear.max_axial_strain = " +
-                      num(c.shear.max_axial_strain));
+    throw ConfigError(source + ": shear.ramp_strain = " + num(c.shear.ramp_strain) +
+                      ": must be below shear.max_axial_strain = " + num(c.shear.max_axial_strain));
 }
 
 }  // namespace
@@ -511,7 +540,8 @@ std::map<std::string, std::string> flatten(const std::string& text) {
   const toml::table t = toml::parse(text);
   for (const auto& [section, node] : t) {
     if (const toml::table* inner = node.as_table()) {
-      for (const auto& [key, value] : *inner) out[std::string(section.str()) + "." + std::string(key.str())] = repr(value);
+      for (const auto& [key, value] : *inner)
+        out[std::string(section.str()) + "." + std::string(key.str())] = repr(value);
     } else {
       out[std::string(section.str())] = repr(node);
     }

@@ -20,70 +20,70 @@ struct ConfigError : std::runtime_error {
 };
 
 struct SampleConfig {
-  std::string packing_file;    // a packing from elsewhere (text format of engine/packing.hpp), or empty
+  std::string packing_file;  // a packing from elsewhere (text format of engine/packing.hpp), or empty
   GenerationSettings generation;
 };
 
 struct PrepareConfig {
-  double friction = 0.0;          // -, Coulomb coefficient during preparation (restored for shearing)
-  double rolling_friction = 0.0;  // -, rolling coefficient during preparation
-  double gain = 0.0;              // 1/s, servo gain (0: derived, see README)
-  double max_rate = 5.0;          // 1/s, largest compression rate (the shrink of the loose cloud)
-  double tolerance = 0.01;        // -, |sigma_k - p0| / p0 on every axis
-  double unbalanced = 0.01;       // -, unbalanced force ratio
+  double friction = 0.0;                // -, Coulomb coefficient during preparation (restored for shearing)
+  double rolling_friction = 0.0;        // -, rolling coefficient during preparation
+  double gain = 0.0;                    // 1/s, servo gain (0: derived, see README)
+  double max_rate = 5.0;                // 1/s, largest compression rate (the shrink of the loose cloud)
+  double tolerance = 0.01;              // -, |sigma_k - p0| / p0 on every axis
+  double unbalanced = 0.01;             // -, unbalanced force ratio
   std::uint64_t check_interval = 1000;  // steps between convergence checks
   std::uint64_t max_steps = 5'000'000;  // give up (error) after this many steps
-  bool chain = false;             // each higher p0 starts from the next lower p0's sample (false: each from the cloud)
-  double dt_fraction = 0.0;       // -, time step of the preparation / Rayleigh time (0: time.dt_fraction)
+  bool chain = false;        // each higher p0 starts from the next lower p0's sample (false: each from the cloud)
+  double dt_fraction = 0.0;  // -, time step of the preparation / Rayleigh time (0: time.dt_fraction)
 };
 
 enum class ShearPath { constant_p, constant_sigma3, strain };
 
 struct ShearConfig {
-  double strain_rate = 0.0;       // 1/s, axial (axis 1) compression rate of the stress paths (0: not given)
-  double inertial_number = 0.0;   // -, instead of strain_rate: the axial rate follows the measured p so that
-                                  // eps_dot_1 d50 sqrt(rho / p) = inertial_number (0: not given)
-  double ramp_strain = 0.0;       // -, axial strain over which the rate rises linearly from 0 (0: none)
-  double gain = 0.0;              // 1/s, lateral servo gain (0: derived, see README)
-  double integral_time = 0.0;     // s, integral time of the lateral servo (0: derived, see README)
-  double max_rate = 0.0;          // 1/s, cap on lateral rates (0: 10 x strain_rate)
-  int servo_interval = 1;         // steps between servo updates
-  double max_axial_strain = 0.2;  // -, stop at this axial (log) strain
-  bool stop_at_critical = false;  // also stop when critical state is detected
-  double critical_window = 0.05;  // -, axial strain window over which eta, p and e must be stationary (critical.hpp)
+  double strain_rate = 0.0;          // 1/s, axial (axis 1) compression rate of the stress paths (0: not given)
+  double inertial_number = 0.0;      // -, instead of strain_rate: the axial rate follows the measured p so that
+                                     // eps_dot_1 d50 sqrt(rho / p) = inertial_number (0: not given)
+  double ramp_strain = 0.0;          // -, axial strain over which the rate rises linearly from 0 (0: none)
+  double gain = 0.0;                 // 1/s, lateral servo gain (0: derived, see README)
+  double integral_time = 0.0;        // s, integral time of the lateral servo (0: derived, see README)
+  double max_rate = 0.0;             // 1/s, cap on lateral rates (0: 10 x strain_rate)
+  int servo_interval = 1;            // steps between servo updates
+  double max_axial_strain = 0.2;     // -, stop at this axial (log) strain
+  bool stop_at_critical = false;     // also stop when critical state is detected
+  double critical_window = 0.05;     // -, axial strain window over which eta, p and e must be stationary (critical.hpp)
   double critical_tolerance = 0.02;  // -, largest relative change of eta = q/p and p over the window (fitted line)
   double critical_tolerance_e = 0.005;  // -, largest change of e over the window (fitted line)
-  Vec3 strain_rates = Vec3::Zero();  // 1/s per axis, compression positive, for path "strain"
-  std::uint64_t steps = 0;           // steps of a strain-controlled stage
+  Vec3 strain_rates = Vec3::Zero();     // 1/s per axis, compression positive, for path "strain"
+  std::uint64_t steps = 0;              // steps of a strain-controlled stage
 };
 
 struct TestSpec {
-  std::string name;               // e.g. "p-b0.50-p0_500kPa"
+  std::string name;  // e.g. "p-b0.50-p0_500kPa"
   ShearPath path = ShearPath::constant_p;
-  double p0 = 0.0;                // Pa, isotropic preparation stress
-  double b = 0.0;                 // -
+  double p0 = 0.0;  // Pa, isotropic preparation stress
+  double b = 0.0;   // -
 };
 
 struct OutputConfig {
-  std::uint64_t series_interval = 1000;      // steps between rows of /series
-  std::uint64_t snapshot_interval = 0;       // steps between particle snapshots (0: stage ends only)
-  std::uint64_t checkpoint_interval = 0;     // steps between checkpoints (0: by time only)
-  double checkpoint_minutes = 10.0;          // wall minutes between checkpoints (0: by steps only)
-  std::uint64_t flush_interval = 10;         // series rows between flushes of the results file
-  bool plot = true;                          // PNG of q and eps_v vs eps_1 per test (python3 + matplotlib)
+  std::uint64_t series_interval = 1000;   // steps between rows of /series
+  std::uint64_t snapshot_interval = 0;    // steps between particle snapshots (0: stage ends only)
+  std::uint64_t checkpoint_interval = 0;  // steps between checkpoints (0: by time only)
+  double checkpoint_minutes = 10.0;       // wall minutes between checkpoints (0: by steps only)
+  std::uint64_t flush_interval = 10;      // series rows between flushes of the results file
+  bool plot = true;                       // PNG of q and eps_v vs eps_1 per test (python3 + matplotlib)
 };
 
 struct Config {
-  std::string text;               // the TOML text as read (stored in every results file)
-  std::string source;             // file name, or "<embedded default>"
+  std::string text;    // the TOML text as read (stored in every results file)
+  std::string source;  // file name, or "<embedded default>"
   SampleConfig sample;
   Material material;
-  ContactSettings contact;        // skin 0 in the file: derived (0.1 x smallest diameter)
-  double dt_fraction = 0.2;       // -, dt / Rayleigh time of the smallest sphere
+  ContactSettings contact;   // skin 0 in the file: derived (0.1 x smallest diameter)
+  double dt_fraction = 0.2;  // -, dt / Rayleigh time of the smallest sphere
   PrepareConfig prepare;
   ShearConfig shear;
-  std::vector<TestSpec> tests;    // the campaign: path x b x p0
-  int parallel = 1;               // tests run at once (the thread budget is split between them)
+  std::vector<TestSpec> tests;  // the campaign: path x b x p0
+  int parallel = 1;             // tests run at once (the thread budget is split between them)
   OutputConfig output;
 };
 

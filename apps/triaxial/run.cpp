@@ -86,12 +86,12 @@ struct Options {
   bool overwrite = false;
   double max_axial_strain = 0.0;  // > 0: overrides shear.max_axial_strain (short runs, CI)
   bool progress = false;
-  bool prepare_only = false;      // run the preparations, no test
-  bool list = false;              // print the tasks and exit
-  std::vector<std::string> task_specs;  // --task values as given
+  bool prepare_only = false;              // run the preparations, no test
+  bool list = false;                      // print the tasks and exit
+  std::vector<std::string> task_specs;    // --task values as given
   std::vector<std::string> allow_change;  // --allow-change keys: a resume may change them
-  std::uint64_t stop_after = 0;   // > 0: each job stops after this many steps of this process, with a
-                                  // checkpoint, as a killed run would (to test --resume)
+  std::uint64_t stop_after = 0;           // > 0: each job stops after this many steps of this process, with a
+                                          // checkpoint, as a killed run would (to test --resume)
   /// Whether a job that started this process at step0 stops (--stop-after) at step s.
   /// Also true once a stop signal arrived (signals.hpp): the job checkpoints and stops.
   bool stop_due(std::uint64_t s, std::uint64_t step0) const {
@@ -101,7 +101,10 @@ struct Options {
   static std::string stop_reason() {
     if (!stop_requested()) return "--stop-after";
     const int sig = stop_signal();
-    return sig == SIGTERM ? "SIGTERM" : sig == SIGINT ? "SIGINT" : sig == SIGUSR1 ? "SIGUSR1" : "signal " + std::to_string(sig);
+    return sig == SIGTERM   ? "SIGTERM"
+           : sig == SIGINT  ? "SIGINT"
+           : sig == SIGUSR1 ? "SIGUSR1"
+                            : "signal " + std::to_string(sig);
   }
 };
 
@@ -115,15 +118,15 @@ struct Plan {
   Config config;
   Options options;
   fs::path out;
-  Packing packing;           // from sample.file, or generated per test (same seed: same cloud)
+  Packing packing;  // from sample.file, or generated per test (same seed: same cloud)
   bool from_file = false;
   double r_min = 0.0, r_max = 0.0;
-  double servo_time = 0.0;   // s, the servo's time unit: max(dt, 0.2 Rayleigh time), see derived_gain
-  double prepare_dt = 0.0;   // s, time step of the preparations (prepare.dt_fraction, else the shear's)
+  double servo_time = 0.0;          // s, the servo's time unit: max(dt, 0.2 Rayleigh time), see derived_gain
+  double prepare_dt = 0.0;          // s, time step of the preparations (prepare.dt_fraction, else the shear's)
   double prepare_servo_time = 0.0;  // s, max(prepare_dt, 0.2 Rayleigh time)
-  double d50 = 0.0;          // m, mass-weighted median diameter of the sample (the inertial number's)
-  Model base;                // dt, material, contact settings of the shear stage
-  std::vector<double> p0;    // distinct preparation stresses, in config order (ascending with prepare.chain)
+  double d50 = 0.0;                 // m, mass-weighted median diameter of the sample (the inertial number's)
+  Model base;                       // dt, material, contact settings of the shear stage
+  std::vector<double> p0;           // distinct preparation stresses, in config order (ascending with prepare.chain)
   /// The p0 whose sample the preparation for p0 starts from (prepare.chain: the next lower p0), or 0
   /// when it starts from the cloud.
   double chained_from(double p0) const {
@@ -133,8 +136,8 @@ struct Plan {
       if (q < p0) from = std::max(from, q);
     return from;
   }
-  int job_threads = 1;       // threads of one test (the budget split between `parallel` tests)
-  int prepare_threads = 1;   // threads of one preparation (all of them when chained ones run one by one)
+  int job_threads = 1;      // threads of one test (the budget split between `parallel` tests)
+  int prepare_threads = 1;  // threads of one preparation (all of them when chained ones run one by one)
 };
 
 std::string p0_tag(double p0) { return "p0_" + num(p0 / 1e3, "%g") + "kPa"; }
@@ -198,7 +201,8 @@ void append_row(ResultsFile& results, const State& state, const Measures& m, dou
   results.append("max_overlap_ratio", m.max_overlap_ratio, "- (largest overlap / smaller radius)");
   results.append("unbalanced_force_ratio", m.unbalanced, "-");
   results.append("inertial_number", m.inertial_number, "- ((eps_dot_1 - eps_dot_3) d50 sqrt(rho/p))");
-  results.append("inertial_number_axial", m.inertial_number_axial, "- (eps_dot_1 d50 sqrt(rho/p): what shear.inertial_number sets)");
+  results.append("inertial_number_axial", m.inertial_number_axial,
+                 "- (eps_dot_1 d50 sqrt(rho/p): what shear.inertial_number sets)");
   results.append("wall_time", wall, "s");
 }
 
@@ -206,14 +210,15 @@ void append_row(ResultsFile& results, const State& state, const Measures& m, dou
 void check_finite(const State& state, const Measures& m) {
   const Particles& p = state.particles;
   for (std::size_t k = 0; k < p.size(); ++k) {
-    const char* what = !p.position[k].allFinite()   ? "position"
-                       : !p.velocity[k].allFinite() ? "velocity"
+    const char* what = !p.position[k].allFinite()           ? "position"
+                       : !p.velocity[k].allFinite()         ? "velocity"
                        : !p.angular_velocity[k].allFinite() ? "angular velocity"
-                       : !p.force[k].allFinite()    ? "force"
-                                                    : nullptr;
+                       : !p.force[k].allFinite()            ? "force"
+                                                            : nullptr;
     if (what)
       throw SimulationError("step " + std::to_string(state.clock.step) + ": particle id " + std::to_string(p.id[k]) +
-                            ": " + what + " is not finite (the run went unstable: lower time.dt_fraction or the strain rate)");
+                            ": " + what +
+                            " is not finite (the run went unstable: lower time.dt_fraction or the strain rate)");
   }
   if (!std::isfinite(m.inv.p) || !state.cell.length.allFinite())
     throw SimulationError("step " + std::to_string(state.clock.step) + ": cell stress or lengths are not finite");
@@ -344,7 +349,8 @@ Model prepare_model(const Plan& plan, double p0) {
   s.control = {AxisControl::stress, AxisControl::stress, AxisControl::stress};
   s.p = p0;
   s.max_rate = plan.config.prepare.max_rate;
-  s.gain = plan.config.prepare.gain > 0.0 ? plan.config.prepare.gain : derived_gain(0.05, p0, m, plan.prepare_servo_time);
+  s.gain =
+      plan.config.prepare.gain > 0.0 ? plan.config.prepare.gain : derived_gain(0.05, p0, m, plan.prepare_servo_time);
   s.interval = 1;
   return m;
 }
@@ -454,8 +460,15 @@ Summary Runner::sample_summary(double p0) const {
 class PrepareRun {
  public:
   PrepareRun(const Plan& plan, Log& log, double p0, Summary& summary)
-      : plan_(plan), log_(log), p0_(p0), summary_(summary), name_(summary.name), pc_(plan.config.prepare),
-        o_(plan.config.output), ckpt_(plan.out / (name_ + ".checkpoint.h5")), series_(plan.out / (name_ + ".h5")),
+      : plan_(plan),
+        log_(log),
+        p0_(p0),
+        summary_(summary),
+        name_(summary.name),
+        pc_(plan.config.prepare),
+        o_(plan.config.output),
+        ckpt_(plan.out / (name_ + ".checkpoint.h5")),
+        series_(plan.out / (name_ + ".h5")),
         from_(plan.chained_from(p0)) {}
 
   /// Opens the preparation (its state and series file) and the world that steps it; a new one
@@ -479,7 +492,7 @@ class PrepareRun {
   Log& log_;
   const double p0_;
   Summary& summary_;
-  const std::string name_;       // "prepare-p0_...kPa"
+  const std::string name_;  // "prepare-p0_...kPa"
   const PrepareConfig& pc_;
   const OutputConfig& o_;
   const fs::path ckpt_, series_;  // the checkpoint, the series file
@@ -489,18 +502,21 @@ class PrepareRun {
   bool resumed_ = false;
   std::optional<World> world_;
   MeasureOptions mo_;
-  Measures m_;                    // the last measured
+  Measures m_;  // the last measured
   std::uint64_t rows_ = 0;
-  std::uint64_t step0_ = 0;       // the step this process started stepping at
+  std::uint64_t step0_ = 0;  // the step this process started stepping at
   Clock::time_point t0_;
 };
 
 void PrepareRun::open(const Runner& runner) {
   const Model model = prepare_model(plan_, p0_);
   State state;
-  if (plan_.options.resume && fs::exists(ckpt_)) state = resume();
-  else if (from_ > 0.0) state = start_from_sample(runner.sample_path(from_));
-  else state = start_from_cloud(model);
+  if (plan_.options.resume && fs::exists(ckpt_))
+    state = resume();
+  else if (from_ > 0.0)
+    state = start_from_sample(runner.sample_path(from_));
+  else
+    state = start_from_cloud(model);
   if (from_ > 0.0) summary_.from = "sample-" + p0_tag(from_);
   // A chained preparation continues a sample whose forces are in its state, as a test does.
   const bool initial_forces = !resumed_ && from_ == 0.0;
@@ -509,10 +525,10 @@ void PrepareRun::open(const Runner& runner) {
   mo_.d50 = median_diameter(world_->state().particles);
   mo_.density = plan_.config.material.density;
   log_.line(name_ + ": isotropic compression to " + num(p0_ / 1e6) + " MPa from the " +
-            (summary_.from == "cloud" ? std::string(plan_.from_file ? "packing file" : "cloud") : summary_.from) + ", " +
-            std::to_string(world_->state().particles.size()) + " spheres, dt = " + num(model.dt) + " s, servo gain " +
-            num(model.servo.gain, "%.4g") + " 1/s, " +
-            std::to_string(plan_.prepare_threads) + " threads");
+            (summary_.from == "cloud" ? std::string(plan_.from_file ? "packing file" : "cloud") : summary_.from) +
+            ", " + std::to_string(world_->state().particles.size()) + " spheres, dt = " + num(model.dt) +
+            " s, servo gain " + num(model.servo.gain, "%.4g") + " 1/s, " + std::to_string(plan_.prepare_threads) +
+            " threads");
   if (!resumed_) row(measure(world_->model(), world_->state(), world_->executor(), mo_));
 }
 
@@ -609,7 +625,8 @@ void PrepareRun::checkpoint_or_stop(std::uint64_t s) {
   if (plan_.options.stop_due(s, step0_)) {
     results_->flush();
     save(ckpt_, world_->state(), {}, timer_);
-    throw Interrupted(name_ + ": stopped at step " + std::to_string(s) + " (" + Options::stop_reason() + "), checkpoint written");
+    throw Interrupted(name_ + ": stopped at step " + std::to_string(s) + " (" + Options::stop_reason() +
+                      "), checkpoint written");
   }
 }
 
@@ -638,8 +655,9 @@ void PrepareRun::finish(const fs::path& sample) {
   summary_.wall = timer_.elapsed();
   summary_.status = "done";
   log_.line(name_ + ": done at step " + std::to_string(st.clock.step) + ": e0 = " + num(m_.void_ratio, "%.4f") +
-            ", Z = " + num(m_.z, "%.3f") + ", Z_mech = " + num(m_.z_mech, "%.3f") + ", p = " + num(m_.inv.p / 1e6, "%.4f") +
-            " MPa, unbalanced " + num(m_.unbalanced, "%.2e") + ", wall " + num(summary_.wall, "%.1f") + " s");
+            ", Z = " + num(m_.z, "%.3f") + ", Z_mech = " + num(m_.z_mech, "%.3f") +
+            ", p = " + num(m_.inv.p / 1e6, "%.4f") + " MPa, unbalanced " + num(m_.unbalanced, "%.2e") + ", wall " +
+            num(summary_.wall, "%.1f") + " s");
 }
 
 bool Runner::prepare(double p0, Summary& summary) {
@@ -664,9 +682,10 @@ bool Runner::prepare(double p0, Summary& summary) {
 struct History {
   std::vector<double> eps1, p, q, e;
   CriticalCheck critical(const ShearConfig& h) const {
-    return check_critical(eps1, p, q, e,
-                          CriticalTest{.window = h.critical_window, .tolerance = h.critical_tolerance,
-                                       .tolerance_e = h.critical_tolerance_e});
+    return check_critical(
+        eps1, p, q, e,
+        CriticalTest{
+            .window = h.critical_window, .tolerance = h.critical_tolerance, .tolerance_e = h.critical_tolerance_e});
   }
   CheckpointExtra save() const {
     CheckpointExtra x;
@@ -728,8 +747,14 @@ bool Runner::ensure_sample(double p0) {
 class ShearRun {
  public:
   ShearRun(const Plan& plan, Log& log, const TestSpec& test, Summary& summary)
-      : plan_(plan), log_(log), test_(test), summary_(summary), h_(plan.config.shear), o_(plan.config.output),
-        ckpt_(plan.out / (test.name + ".checkpoint.h5")), path_(plan.out / (test.name + ".h5")),
+      : plan_(plan),
+        log_(log),
+        test_(test),
+        summary_(summary),
+        h_(plan.config.shear),
+        o_(plan.config.output),
+        ckpt_(plan.out / (test.name + ".checkpoint.h5")),
+        path_(plan.out / (test.name + ".h5")),
         max_strain_(plan.options.max_axial_strain > 0.0 ? plan.options.max_axial_strain : h_.max_axial_strain),
         watch_(test.name, log) {}
 
@@ -777,9 +802,9 @@ class ShearRun {
   bool resumed_ = false;
   std::optional<World> world_;
   MeasureOptions mo_;
-  Measures m_;                  // the last row's
+  Measures m_;  // the last row's
   std::uint64_t rows_ = 0;
-  std::uint64_t step0_ = 0;     // the step this process started stepping at
+  std::uint64_t step0_ = 0;  // the step this process started stepping at
   Clock::time_point t0_, last_progress_;
 };
 
@@ -805,10 +830,10 @@ bool ShearRun::open(const Runner& runner, const fs::path& sample) {
   world_.emplace(model, std::move(state), systems_for(model), ExecutorConfig{Backend::tbb, plan_.job_threads}, false);
   mo_.d50 = median_diameter(world_->state().particles);
   mo_.density = plan_.config.material.density;
-  log_.line(test_.name + ": " + path_name(test_.path) + (test_.path == ShearPath::strain ? "" : ", b = " + num(test_.b)) +
-            ", p0 = " + num(test_.p0 / 1e6) + " MPa, e0 = " + num(summary_.e0, "%.4f") + ", to axial strain " +
-            num(max_strain_) + ", servo gain " + num(model.servo.gain, "%.4g") + " 1/s, " +
-            std::to_string(plan_.job_threads) + " threads");
+  log_.line(test_.name + ": " + path_name(test_.path) +
+            (test_.path == ShearPath::strain ? "" : ", b = " + num(test_.b)) + ", p0 = " + num(test_.p0 / 1e6) +
+            " MPa, e0 = " + num(summary_.e0, "%.4f") + ", to axial strain " + num(max_strain_) + ", servo gain " +
+            num(model.servo.gain, "%.4g") + " 1/s, " + std::to_string(plan_.job_threads) + " threads");
   if (!resumed_) {
     row();
     results_->write_snapshot(world_->state());
@@ -833,11 +858,16 @@ State ShearRun::start_from_sample(const fs::path& sample) {
   state.clock = {};
   state.cell.length0 = state.cell.length;
   state.cell.servo_integral.setZero();  // servo state resets between stages
-  if (test_.path == ShearPath::strain) state.cell.rate = -h_.strain_rates;
-  else state.cell.rate = Vec3(h_.ramp_strain > 0.0 ? 0.0 : -axial_rate(plan_, test_.p0), 0.0, 0.0);
+  if (test_.path == ShearPath::strain)
+    state.cell.rate = -h_.strain_rates;
+  else
+    state.cell.rate = Vec3(h_.ramp_strain > 0.0 ? 0.0 : -axial_rate(plan_, test_.p0), 0.0, 0.0);
   results_.emplace(ResultsFile::create(path_, plan_.config.text,
-                                       {{"job", test_.name}, {"stage", "shear"}, {"path", path_name(test_.path)},
-                                        {"b", num(test_.b)}, {"p0", num(test_.p0)}}));
+                                       {{"job", test_.name},
+                                        {"stage", "shear"},
+                                        {"path", path_name(test_.path)},
+                                        {"b", num(test_.b)},
+                                        {"p0", num(test_.p0)}}));
   return state;
 }
 
@@ -865,8 +895,9 @@ CheckpointExtra ShearRun::extras() const {
 // Whether the loop of run() has something to do after step s: the end, a row, a snapshot, a
 // checkpoint, a stop or a progress line.
 bool ShearRun::event_due(std::uint64_t s, double eps1) {
-  return finished(s, eps1) || s % o_.series_interval == 0 || (o_.snapshot_interval > 0 && s % o_.snapshot_interval == 0) ||
-         checkpoint_due(o_, s, timer_) || plan_.options.stop_due(s, step0_) || progress_due();
+  return finished(s, eps1) || s % o_.series_interval == 0 ||
+         (o_.snapshot_interval > 0 && s % o_.snapshot_interval == 0) || checkpoint_due(o_, s, timer_) ||
+         plan_.options.stop_due(s, step0_) || progress_due();
 }
 
 void ShearRun::run() {
@@ -917,7 +948,8 @@ void ShearRun::checkpoint_or_stop(std::uint64_t s) {
   if (plan_.options.stop_due(s, step0_)) {
     results_->flush();
     save(ckpt_, st, extras(), timer_);
-    throw Interrupted(test_.name + ": stopped at step " + std::to_string(s) + " (" + Options::stop_reason() + "), checkpoint written");
+    throw Interrupted(test_.name + ": stopped at step " + std::to_string(s) + " (" + Options::stop_reason() +
+                      "), checkpoint written");
   }
 }
 
@@ -926,12 +958,14 @@ void ShearRun::report_progress(std::uint64_t s, double eps1) {
   last_progress_ = Clock::now();
   const double speed = double(s - step0_) / std::chrono::duration<double>(Clock::now() - t0_).count();
   const double rate = -world_->state().cell.rate[0];  // 1/s, the axial rate now
-  const double left = test_.path != ShearPath::strain ? (rate > 0.0 ? (max_strain_ - eps1) / (rate * world_->model().dt) / speed : 0.0)
-                                                      : double(h_.steps - s) / speed;
+  const double left = test_.path != ShearPath::strain
+                          ? (rate > 0.0 ? (max_strain_ - eps1) / (rate * world_->model().dt) / speed : 0.0)
+                          : double(h_.steps - s) / speed;
   log_.progress(test_.name + " step " + std::to_string(s) + "  eps1 " + num(100 * eps1, "%.2f") + " %  p " +
                     num(m_.inv.p / 1e6, "%.4f") + " MPa  q " + num(m_.inv.q / 1e6, "%.4f") + " MPa  e " +
                     num(m_.void_ratio, "%.4f") + "  I " + num(m_.inertial_number, "%.1e") + "  unbal " +
-                    num(m_.unbalanced, "%.3f") + "  " + num(speed, "%.0f") + " steps/s  ETA " + num(left, "%.0f") + " s",
+                    num(m_.unbalanced, "%.3f") + "  " + num(speed, "%.0f") + " steps/s  ETA " + num(left, "%.0f") +
+                    " s",
                 plan_.config.parallel == 1);
 }
 
@@ -953,11 +987,11 @@ void ShearRun::finish() {
   summary_.steps = st.clock.step;
   summary_.wall = timer_.elapsed();
   summary_.status = summary_.critical ? "done (critical state)" : "done";
-  log_.line(test_.name + ": done at step " + std::to_string(st.clock.step) + ", eps1 = " + num(100 * m_.strain[0], "%.2f") +
-            " %: peak q/p = " + num(summary_.peak_eta, "%.4f") + " at eps1 = " + num(100 * summary_.peak_strain, "%.2f") +
-            " %, final q/p = " + num(m_.inv.eta, "%.4f") + ", p = " + num(m_.inv.p / 1e6, "%.4f") + " MPa, b = " +
-            num(m_.inv.b, "%.3f") + ", e = " + num(m_.void_ratio, "%.4f") + ", wall " + num(summary_.wall, "%.1f") + " s; " +
-            watch_.worst());
+  log_.line(test_.name + ": done at step " + std::to_string(st.clock.step) +
+            ", eps1 = " + num(100 * m_.strain[0], "%.2f") + " %: peak q/p = " + num(summary_.peak_eta, "%.4f") +
+            " at eps1 = " + num(100 * summary_.peak_strain, "%.2f") + " %, final q/p = " + num(m_.inv.eta, "%.4f") +
+            ", p = " + num(m_.inv.p / 1e6, "%.4f") + " MPa, b = " + num(m_.inv.b, "%.3f") +
+            ", e = " + num(m_.void_ratio, "%.4f") + ", wall " + num(summary_.wall, "%.1f") + " s; " + watch_.worst());
 }
 
 void ShearRun::plot() const {
@@ -965,9 +999,12 @@ void ShearRun::plot() const {
   const fs::path script = script_path("plot_triaxial.py");
   const fs::path png = plan_.out / (test_.name + ".png");
   if (!script.empty()) {
-    const std::string cmd = "'" + python() + "' '" + script.string() + "' '" + path_.string() + "' '" + png.string() + "' 2>&1";
-    if (std::system(cmd.c_str()) == 0) log_.line(test_.name + ": plot " + png.string());
-    else log_.line(test_.name + ": warning: no plot (needs python3 with h5py and matplotlib: " + cmd + ")");
+    const std::string cmd =
+        "'" + python() + "' '" + script.string() + "' '" + path_.string() + "' '" + png.string() + "' 2>&1";
+    if (std::system(cmd.c_str()) == 0)
+      log_.line(test_.name + ": plot " + png.string());
+    else
+      log_.line(test_.name + ": warning: no plot (needs python3 with h5py and matplotlib: " + cmd + ")");
   }
 }
 
@@ -975,8 +1012,8 @@ void Runner::shear(const TestSpec& test, Summary& summary) {
   summary.name = test.name;
   FileLock job;
   if (!job.try_lock(plan_.out / ".locks" / (test.name + ".lock"), FileLock::Mode::exclusive))
-    throw std::runtime_error("running in another process (" + FileLock::holder(plan_.out / ".locks" / (test.name + ".lock")) +
-                             "); not started twice");
+    throw std::runtime_error("running in another process (" +
+                             FileLock::holder(plan_.out / ".locks" / (test.name + ".lock")) + "); not started twice");
   ShearRun run(plan_, log_, test, summary);
   if (!run.open(*this, sample_path(test.p0))) return;  // complete in an earlier run
   run.run();
@@ -1021,8 +1058,8 @@ std::string deep_overlap(const Packing& pk) {
             for (int a = 0; a < 3; ++a) d[a] -= pk.box[a] * std::nearbyint(d[a] / pk.box[a]);
             const double overlap = pk.radius[k] + pk.radius[q] - d.norm();
             if (overlap > 0.1 * std::min(pk.radius[k], pk.radius[q]))
-              return "spheres " + std::to_string(k + 1) + " and " + std::to_string(q + 1) + " (in file order) overlap by " +
-                     num(overlap / std::min(pk.radius[k], pk.radius[q]), "%.3g") +
+              return "spheres " + std::to_string(k + 1) + " and " + std::to_string(q + 1) +
+                     " (in file order) overlap by " + num(overlap / std::min(pk.radius[k], pk.radius[q]), "%.3g") +
                      " of the smaller radius (allowed: up to 0.1; coincident spheres?)";
           }
         }
@@ -1042,7 +1079,8 @@ std::vector<double> sample_sizes(Plan& plan) {
     } catch (const std::exception& e) {
       throw ConfigError(src + ": sample.file = \"" + sc.packing_file + "\": " + e.what());
     }
-    if (plan.packing.position.size() < 2) throw ConfigError(src + ": sample.file = \"" + sc.packing_file + "\": needs at least 2 spheres");
+    if (plan.packing.position.size() < 2)
+      throw ConfigError(src + ": sample.file = \"" + sc.packing_file + "\": needs at least 2 spheres");
     plan.from_file = true;
     for (double r : plan.packing.radius) diameters.push_back(2.0 * r);
     if (const std::string pair = deep_overlap(plan.packing); !pair.empty())
@@ -1065,9 +1103,10 @@ void derive_model(Plan& plan) {
   plan.servo_time = std::max(m.dt, k_servo_time_fraction * rayleigh_time(plan.r_min, config.material));
   // The preparation may take its own step: frictionless, it has no tangential or rolling springs,
   // whose stiff rotational modes bound the shearing step at high pressure (docs/reproducing-the-study.md).
-  plan.prepare_dt = config.prepare.dt_fraction > 0.0 ? config.prepare.dt_fraction * rayleigh_time(plan.r_min, config.material)
-                                                     : m.dt;
-  plan.prepare_servo_time = std::max(plan.prepare_dt, k_servo_time_fraction * rayleigh_time(plan.r_min, config.material));
+  plan.prepare_dt =
+      config.prepare.dt_fraction > 0.0 ? config.prepare.dt_fraction * rayleigh_time(plan.r_min, config.material) : m.dt;
+  plan.prepare_servo_time =
+      std::max(plan.prepare_dt, k_servo_time_fraction * rayleigh_time(plan.r_min, config.material));
 }
 
 // The cell must stay wider than 2 r_max + skin through the test: at a dense random packing
@@ -1094,14 +1133,15 @@ void check_cell_width(const Plan& plan, const std::vector<double>& diameters, do
   // The key at fault first: a skin wider than the spheres, a packing file's huge sphere, a
   // strain path that collapses the cell; else the sample is too small.
   std::string key = "sample.count = " + std::to_string(diameters.size());
-  if (m.contact.skin > 2.0 * plan.r_max) key = "contact.skin = " + num(m.contact.skin) + " m (wider than the largest sphere)";
+  if (m.contact.skin > 2.0 * plan.r_max)
+    key = "contact.skin = " + num(m.contact.skin) + " m (wider than the largest sphere)";
   else if (plan.from_file && 2.0 * plan.r_max > 0.25 * side)
     key = "sample.file = \"" + config.sample.packing_file + "\": its largest radius " + num(plan.r_max) + " m";
   else if (narrowest < side * std::exp(-max_strain) && config.shear.steps > 0)
     key = "shear.steps = " + std::to_string(config.shear.steps) + " (with shear.strain_rates)";
-  throw ConfigError(config.source + ": " + key + ": the cell would narrow to " +
-                    num(narrowest) + " m (dense sample, then the axial strain), not wider than 2 r_max + skin = " +
-                    num(cutoff) + " m; allowed: more than " + num(std::ceil(needed), "%.0f") +
+  throw ConfigError(config.source + ": " + key + ": the cell would narrow to " + num(narrowest) +
+                    " m (dense sample, then the axial strain), not wider than 2 r_max + skin = " + num(cutoff) +
+                    " m; allowed: more than " + num(std::ceil(needed), "%.0f") +
                     " spheres, or a smaller shear.max_axial_strain");
 }
 
@@ -1116,10 +1156,13 @@ void check_run_lengths(const Plan& plan, double max_strain) {
     const double rate = axial_rate(plan, t.p0);
     const double steps = max_strain / (rate * m.dt);
     if (!(steps < 1e10))
-      throw ConfigError(src + ": " + (m.dt < 1e-12 ? "material.young = " + num(config.material.young) + " Pa (dt = " + num(m.dt) + " s)"
-                                                   : std::string(config.shear.inertial_number > 0.0 ? "shear.inertial_number" : "shear.strain_rate")) +
-                        ": the test at p0 = " + num(t.p0) + " Pa would take " + num(steps, "%.2g") +
-                        " steps; allowed: up to 1e10 (a stiffer time step or a faster rate)");
+      throw ConfigError(
+          src + ": " +
+          (m.dt < 1e-12
+               ? "material.young = " + num(config.material.young) + " Pa (dt = " + num(m.dt) + " s)"
+               : std::string(config.shear.inertial_number > 0.0 ? "shear.inertial_number" : "shear.strain_rate")) +
+          ": the test at p0 = " + num(t.p0) + " Pa would take " + num(steps, "%.2g") +
+          " steps; allowed: up to 1e10 (a stiffer time step or a faster rate)");
     const double strain_per_update = rate * m.dt * config.shear.servo_interval;
     if (strain_per_update > 1e-3)
       throw ConfigError(src + ": shear.servo_interval = " + std::to_string(config.shear.servo_interval) +
@@ -1132,7 +1175,9 @@ void check_run_lengths(const Plan& plan, double max_strain) {
     const double phi0 = plan.from_file ? 0.3 : config.sample.generation.solid_fraction;
     const double steps = std::log(0.64 / phi0) / 3.0 / (config.prepare.max_rate * plan.prepare_dt);
     if (!(steps < 1e10))
-      throw ConfigError(src + ": " + (plan.prepare_dt < 1e-12 ? "material.young = " + num(config.material.young) + " Pa" : "prepare.max_rate = " + num(config.prepare.max_rate)) +
+      throw ConfigError(src + ": " +
+                        (plan.prepare_dt < 1e-12 ? "material.young = " + num(config.material.young) + " Pa"
+                                                 : "prepare.max_rate = " + num(config.prepare.max_rate)) +
                         ": the preparation would take more than " + num(steps, "%.2g") + " steps; allowed: up to 1e10");
   }
 }
@@ -1245,9 +1290,9 @@ void write_index(const Plan& plan, const std::vector<Summary>& prep, const std::
       const TestSpec& t = plan.config.tests[k];
       const Summary& s = tests[k];
       out << t.name << ',' << path_name(t.path) << ',' << num(t.b) << ',' << num(t.p0) << ',' << t.name << ".h5,"
-          << s.status << ',' << num(s.e0) << ',' << num(s.z0) << ',' << num(s.peak_eta) << ',' << num(s.peak_strain) << ','
-          << num(s.final_eta) << ',' << num(s.final_p) << ',' << num(s.final_e) << ',' << num(s.final_strain) << ','
-          << s.steps << ',' << num(s.wall) << '\n';
+          << s.status << ',' << num(s.e0) << ',' << num(s.z0) << ',' << num(s.peak_eta) << ',' << num(s.peak_strain)
+          << ',' << num(s.final_eta) << ',' << num(s.final_p) << ',' << num(s.final_e) << ',' << num(s.final_strain)
+          << ',' << s.steps << ',' << num(s.wall) << '\n';
     }
   });
   // One row per sample: the preparation's end state, which every test on it starts from.
@@ -1256,9 +1301,9 @@ void write_index(const Plan& plan, const std::vector<Summary>& prep, const std::
     for (std::size_t k = 0; k < prep.size(); ++k) {
       const Summary& s = prep[k];
       const std::string tag = p0_tag(plan.p0[k]);
-      out << "sample-" << tag << ',' << num(plan.p0[k]) << ",sample-" << tag << ".h5," << s.status << ',' << num(s.final_p)
-          << ',' << num(s.e0) << ',' << num(s.z0) << ',' << num(s.z_mech) << ',' << num(s.unbalanced) << ',' << s.steps << ','
-          << num(s.wall) << ',' << s.from << '\n';
+      out << "sample-" << tag << ',' << num(plan.p0[k]) << ",sample-" << tag << ".h5," << s.status << ','
+          << num(s.final_p) << ',' << num(s.e0) << ',' << num(s.z0) << ',' << num(s.z_mech) << ',' << num(s.unbalanced)
+          << ',' << s.steps << ',' << num(s.wall) << ',' << s.from << '\n';
     }
   });
 }
@@ -1281,8 +1326,14 @@ void run_parallel(std::size_t n, int workers, Fn&& fn) {
 class Campaign {
  public:
   Campaign(const Plan& plan, Log& log, const std::vector<char>& run_prep, const std::vector<char>& run_test)
-      : plan_(plan), log_(log), run_prep_(run_prep), run_test_(run_test), runner_(plan, log), prep_(plan.p0.size()),
-        tests_(plan.config.tests.size()), prepared_(plan.p0.size(), 0) {}
+      : plan_(plan),
+        log_(log),
+        run_prep_(run_prep),
+        run_test_(run_test),
+        runner_(plan, log),
+        prep_(plan.p0.size()),
+        tests_(plan.config.tests.size()),
+        prepared_(plan.p0.size(), 0) {}
 
   /// The preparations; chained ones run in order of p0, each after the one it starts from.
   void prepare_samples();
@@ -1324,7 +1375,8 @@ void Campaign::failed(const std::string& what, const std::exception& e) {
 }
 
 void Campaign::prepare_samples() {
-  run_parallel(plan_.p0.size(), plan_.config.prepare.chain ? 1 : plan_.config.parallel, [&](std::size_t k) { prepare_sample(k); });
+  run_parallel(plan_.p0.size(), plan_.config.prepare.chain ? 1 : plan_.config.parallel,
+               [&](std::size_t k) { prepare_sample(k); });
 }
 
 void Campaign::prepare_sample(std::size_t k) {
@@ -1387,8 +1439,10 @@ void Campaign::write_indices() {
     index_lock.lock(plan_.out / ".locks" / "index.csv.lock", FileLock::Mode::exclusive);
     for (std::size_t k = 0; k < prep_.size(); ++k)
       if (!run_prep_[k] || prep_[k].status == "not run") {
-        if (fs::exists(runner_.sample_path(plan_.p0[k]))) prep_[k] = runner_.sample_summary(plan_.p0[k]);
-        else prep_[k].name = "prepare-" + p0_tag(plan_.p0[k]);
+        if (fs::exists(runner_.sample_path(plan_.p0[k])))
+          prep_[k] = runner_.sample_summary(plan_.p0[k]);
+        else
+          prep_[k].name = "prepare-" + p0_tag(plan_.p0[k]);
       }
     for (std::size_t k = 0; k < tests_.size(); ++k)
       if (!run_test_[k]) tests_[k] = runner_.test_summary_on_disk(plan_.config.tests[k]);
@@ -1407,7 +1461,8 @@ static int script_main(const std::string& command, int argc, const char* const* 
   const std::string prog = "triaxial " + command;
   const fs::path script = script_path(command + ".py");
   if (script.empty()) {
-    err << prog << ": " << command << ".py not found (looked in <prefix>/share/sandcell and " << SANDCELL_SCRIPT_DIR << ")\n";
+    err << prog << ": " << command << ".py not found (looked in <prefix>/share/sandcell and " << SANDCELL_SCRIPT_DIR
+        << ")\n";
     return 2;
   }
   const std::string py = python();
@@ -1487,7 +1542,8 @@ static int slurm_main(int argc, const char* const* argv, std::ostream& out, std:
   app.add_option("--cpus-per-task", c.cpus_per_task, "CPUs (threads) of each task")->check(CLI::Range(1, 4096));
   app.add_option("--time", c.time, "time limit of each task, HH:MM:SS or D-HH:MM:SS (default 24:00:00)");
   app.add_option("--partition", c.partition, "partition (default: the cluster's)");
-  app.add_option("--max-running", c.max_running, "tasks of an array running at once (0: no limit)")->check(CLI::Range(0, 100000));
+  app.add_option("--max-running", c.max_running, "tasks of an array running at once (0: no limit)")
+      ->check(CLI::Range(0, 100000));
   app.add_flag("--submit", submit, "submit the scripts with sbatch after writing them");
   try {
     app.parse(argc, argv);
@@ -1529,8 +1585,8 @@ static int slurm_main(int argc, const char* const* argv, std::ostream& out, std:
     std::ostringstream held;
     held << in.rdbuf();
     if (held.str() != text) {
-      err << "triaxial slurm: --out = " << dir << ": holds another campaign (" << c.config.string()
-          << " differs from " << config << "); allowed: another --out\n";
+      err << "triaxial slurm: --out = " << dir << ": holds another campaign (" << c.config.string() << " differs from "
+          << config << "); allowed: another --out\n";
       return 2;
     }
   }
@@ -1542,9 +1598,10 @@ static int slurm_main(int argc, const char* const* argv, std::ostream& out, std:
     err << "triaxial slurm: " << e.what() << '\n';
     return 1;
   }
-  out << "triaxial slurm: " << c.preparations << " preparation(s) " << (c.chained ? "(one chained job)" : "(array)") << ", "
-      << c.tests << " tests (array" << (c.max_running > 0 ? ", " + std::to_string(c.max_running) + " at once" : "")
-      << "), analysis; scripts in " << (c.out / "slurm").string() << "\n";
+  out << "triaxial slurm: " << c.preparations << " preparation(s) " << (c.chained ? "(one chained job)" : "(array)")
+      << ", " << c.tests << " tests (array"
+      << (c.max_running > 0 ? ", " + std::to_string(c.max_running) + " at once" : "") << "), analysis; scripts in "
+      << (c.out / "slurm").string() << "\n";
   if (!submit) {
     out << "submit with: " << (c.out / "slurm" / "submit.sh").string() << "\n";
     return 0;
@@ -1566,7 +1623,8 @@ static int claim_directory(const Plan& plan, const Options& options, bool select
     for (const fs::path& f : files)
       if (fs::exists(f)) existing.push_back(f);
     if (!existing.empty() && !options.overwrite) {
-      err << "triaxial: --out = " << plan.out.string() << ": holds the results of an earlier run (" << existing.front().string()
+      err << "triaxial: --out = " << plan.out.string() << ": holds the results of an earlier run ("
+          << existing.front().string()
           << (existing.size() > 1 ? " and " + std::to_string(existing.size() - 1) + " more" : "")
           << "); allowed: --resume to continue it, --overwrite to replace it, or another --out\n";
       return 2;
@@ -1612,8 +1670,9 @@ static int claim_directory(const Plan& plan, const Options& options, bool select
     if (!refused.empty()) {
       std::string list;
       for (const std::string& k : refused) list += (list.empty() ? "" : ", ") + k;
-      err << "triaxial: " << plan.config.source << " differs from the run in " << plan.out.string() << " (.config.toml) in "
-          << list << "; allowed: the run's values, changes to output.*, tests.* and shear.max_axial_strain, or "
+      err << "triaxial: " << plan.config.source << " differs from the run in " << plan.out.string()
+          << " (.config.toml) in " << list
+          << "; allowed: the run's values, changes to output.*, tests.* and shear.max_axial_strain, or "
           << "--allow-change KEY for a change you mean\n";
       return 2;
     }
@@ -1641,8 +1700,9 @@ static void log_campaign_start(Log& log, const Plan& plan, const Options& option
   // Once per run: it concerns every stage. The speed/accuracy study (docs/study) moved the peak
   // q/p by 1e-4 from dt = 0.05 to 0.5 t_R; beyond that nothing is measured.
   if (plan.config.dt_fraction > 0.5)
-    log.line("warning: time.dt_fraction = " + num(plan.config.dt_fraction) +
-             " > 0.5 of the Rayleigh time (the largest the speed/accuracy study validated): contact collisions resolved by few steps");
+    log.line(
+        "warning: time.dt_fraction = " + num(plan.config.dt_fraction) +
+        " > 0.5 of the Rayleigh time (the largest the speed/accuracy study validated): contact collisions resolved by few steps");
   if (plan.config.prepare.dt_fraction > 0.5)
     log.line("warning: prepare.dt_fraction = " + num(plan.config.prepare.dt_fraction) +
              " > 0.5 of the Rayleigh time: contact collisions resolved by few steps");
@@ -1659,7 +1719,8 @@ static int run_campaign(const Plan& plan, const Options& options, const std::vec
   campaign.shear_tests();
   campaign.write_indices();
   const int failures = campaign.failures();
-  log.line("results: " + (plan.out / "index.csv").string() + (failures ? " (" + std::to_string(failures) + " failed)" : ""));
+  log.line("results: " + (plan.out / "index.csv").string() +
+           (failures ? " (" + std::to_string(failures) + " failed)" : ""));
   return campaign.exit_code();
 }
 
@@ -1673,30 +1734,36 @@ struct CommandLine {
 // The options of `triaxial [CONFIG] ...` (--help lists them in this order).
 static void add_run_options(CLI::App& app, CommandLine& cl) {
   Options& options = cl.options;
-  app.footer("Analysis of results (critical state line, M(theta), dilatancy; report and figures):\n"
-             "  triaxial analyze RESULTS.h5|DIR... [--out DIR]   (triaxial analyze --help for its options)\n"
-             "Speed versus accuracy (timestep, inertial number, stiffness, restitution, N; table and Pareto figure):\n"
-             "  triaxial study [CONFIG] [--preset quick|inertia|full|size] [--out DIR]   (triaxial study --help)\n"
-             "Strain localization (shear bands) from the particle snapshots of results files:\n"
-             "  triaxial localization RESULTS.h5... [--out DIR] [--grid G] [--whole] [--slabs K]   (triaxial localization --help)");
+  app.footer(
+      "Analysis of results (critical state line, M(theta), dilatancy; report and figures):\n"
+      "  triaxial analyze RESULTS.h5|DIR... [--out DIR]   (triaxial analyze --help for its options)\n"
+      "Speed versus accuracy (timestep, inertial number, stiffness, restitution, N; table and Pareto figure):\n"
+      "  triaxial study [CONFIG] [--preset quick|inertia|full|size] [--out DIR]   (triaxial study --help)\n"
+      "Strain localization (shear bands) from the particle snapshots of results files:\n"
+      "  triaxial localization RESULTS.h5... [--out DIR] [--grid G] [--whole] [--slabs K]   (triaxial localization --help)");
   app.add_option("config", options.config_path, "TOML configuration (none: the embedded default)");
-  app.add_option("--threads", options.threads,
-                 "worker threads in all (default: the CPUs this process may use: SLURM_CPUS_PER_TASK, else its affinity mask)")->check(CLI::Range(1, 1024));
+  app.add_option(
+         "--threads", options.threads,
+         "worker threads in all (default: the CPUs this process may use: SLURM_CPUS_PER_TASK, else its affinity mask)")
+      ->check(CLI::Range(1, 1024));
   app.add_option("--out", options.out, "output directory (default: results/<config name>)");
   app.add_flag("--resume", options.resume, "continue a killed run from its checkpoints");
   app.add_flag("--overwrite", options.overwrite, "replace the results of an earlier run in the output directory");
   app.add_option("--max-axial-strain", options.max_axial_strain, "override shear.max_axial_strain (short runs)")
       ->check(CLI::Range(1e-9, 2.0));
   app.add_flag("--prepare-only", options.prepare_only, "prepare the campaign's samples and stop (no test is sheared)");
-  app.add_flag("--list", options.list, "print the campaign's tasks (preparations, then tests: index, kind, name) and exit");
-  app.add_option("--task", options.task_specs,
-                 "run only these tasks of --list: K, A-B or K,L,... (repeatable); a test finds its sample in --out or prepares it")
+  app.add_flag("--list", options.list,
+               "print the campaign's tasks (preparations, then tests: index, kind, name) and exit");
+  app.add_option(
+         "--task", options.task_specs,
+         "run only these tasks of --list: K, A-B or K,L,... (repeatable); a test finds its sample in --out or prepares it")
       ->take_all();
   app.add_option("--allow-change", options.allow_change,
                  "with --resume or --task: let these config keys (section.key) differ from the run's (.config.toml)")
       ->take_all();
   app.add_flag("--print-default", cl.print_default, "print the embedded default configuration and exit");
-  app.add_flag("--check", cl.check_only, "check the configuration (and plan the campaign) and exit; nothing is written");
+  app.add_flag("--check", cl.check_only,
+               "check the configuration (and plan the campaign) and exit; nothing is written");
   app.add_option("--stop-after", options.stop_after,
                  "stop every job after N steps with a checkpoint, as if killed (to test --resume)");
 }
@@ -1763,14 +1830,15 @@ static Plan load_plan(const Options& options) {
 static fs::path output_directory(const Options& options) {
   return !options.out.empty()          ? fs::path(options.out)
          : options.config_path.empty() ? fs::path("results/default")
-                                        : fs::path("results") / fs::path(options.config_path).stem();
+                                       : fs::path("results") / fs::path(options.config_path).stem();
 }
 
 // --list: the tasks in a stable order, preparations by p0 (as prepared), then the tests.
 static void list_tasks(const Plan& plan, std::ostream& out) {
   const std::size_t n_prep = plan.p0.size();
   for (std::size_t k = 0; k < plan.p0.size(); ++k) out << k << " prepare prepare-" << p0_tag(plan.p0[k]) << '\n';
-  for (std::size_t k = 0; k < plan.config.tests.size(); ++k) out << n_prep + k << " test " << plan.config.tests[k].name << '\n';
+  for (std::size_t k = 0; k < plan.config.tests.size(); ++k)
+    out << n_prep + k << " test " << plan.config.tests[k].name << '\n';
 }
 
 // --task: runs only the tasks named (indices of --list), marked in run_prep and run_test.
@@ -1823,8 +1891,8 @@ int triaxial_main(int argc, const char* const* argv, std::ostream& out, std::ost
     return 2;
   }
   if (cl.check_only) {
-    out << "triaxial: " << plan.config.source << ": valid: " << plan.config.tests.size() << " test(s), " << plan.p0.size()
-        << " sample(s), dt = " << num(plan.base.dt) << " s\n";
+    out << "triaxial: " << plan.config.source << ": valid: " << plan.config.tests.size() << " test(s), "
+        << plan.p0.size() << " sample(s), dt = " << num(plan.base.dt) << " s\n";
     return 0;
   }
   plan.out = output_directory(options);
@@ -1839,7 +1907,8 @@ int triaxial_main(int argc, const char* const* argv, std::ostream& out, std::ost
     if (const int code = select_tasks(plan, options.task_specs, run_prep, run_test, err); code != 0) return code;
 
   FileLock dir_lock;  // held until the campaign ends
-  if (const int code = claim_directory(plan, options, selected, run_prep, run_test, dir_lock, err); code != 0) return code;
+  if (const int code = claim_directory(plan, options, selected, run_prep, run_test, dir_lock, err); code != 0)
+    return code;
   install_stop_handlers();
   return run_campaign(plan, options, run_prep, run_test, out);
 }

@@ -9,8 +9,8 @@
 namespace sandcell::triaxial {
 
 namespace {
-std::atomic<int> g_signal{0};             // lock-free, so safe to write from a handler
-std::atomic<long long> g_first_ns{0};     // CLOCK_MONOTONIC of the first signal
+std::atomic<int> g_signal{0};          // lock-free, so safe to write from a handler
+std::atomic<long long> g_first_ns{0};  // CLOCK_MONOTONIC of the first signal
 static_assert(std::atomic<int>::is_always_lock_free && std::atomic<long long>::is_always_lock_free);
 constexpr long long k_same_request_ns = 1'000'000'000;
 

@@ -34,7 +34,8 @@ void write_file(const fs::path& path, const std::string& text, bool executable) 
   }
   fs::rename(tmp, path);
   if (executable)
-    fs::permissions(path, fs::perms::owner_exec | fs::perms::group_exec | fs::perms::others_exec, fs::perm_options::add);
+    fs::permissions(path, fs::perms::owner_exec | fs::perms::group_exec | fs::perms::others_exec,
+                    fs::perm_options::add);
 }
 
 // The #SBATCH lines every script shares.
@@ -93,8 +94,8 @@ void write_slurm_scripts(const SlurmCampaign& c) {
   write_file(dir / "prepare.sbatch", prepare, false);
 
   std::string tests = header(c, "sandcell-tests", "tests-%A_%a.out");
-  tests += "#SBATCH --array=0-" + std::to_string(c.tests - 1) + throttle + "\n" +
-           "# Array task K runs task " + std::to_string(c.preparations) + " + K of `triaxial CONFIG --list`.\n" +
+  tests += "#SBATCH --array=0-" + std::to_string(c.tests - 1) + throttle + "\n" + "# Array task K runs task " +
+           std::to_string(c.preparations) + " + K of `triaxial CONFIG --list`.\n" +
            task_body(c, "--task \"$((" + std::to_string(c.preparations) + " + SLURM_ARRAY_TASK_ID))\"");
   write_file(dir / "tests.sbatch", tests, false);
 

@@ -25,9 +25,9 @@ struct SlurmCampaign {
   std::size_t tests = 0;           // tasks preparations .. preparations+tests-1
   bool chained = false;            // preparations depend on each other (one job, in order)
   int cpus_per_task = 1;
-  std::string time = "24:00:00";   // per task, HH:MM:SS (or D-HH:MM:SS)
-  std::string partition;           // empty: the cluster's default
-  int max_running = 0;             // array throttle (%M); 0: none
+  std::string time = "24:00:00";  // per task, HH:MM:SS (or D-HH:MM:SS)
+  std::string partition;          // empty: the cluster's default
+  int max_running = 0;            // array throttle (%M); 0: none
 };
 
 /// Writes DIR/slurm/{prepare,tests,analyze}.sbatch and submit.sh. Throws std::runtime_error on I/O errors.

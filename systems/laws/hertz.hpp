@@ -21,7 +21,7 @@ struct Hertz {
   [[gnu::always_inline]] static inline Stiffness stiffness(const LawPair& p, double r_star, double m_star, double od) {
     const double sqrt_rd = std::sqrt(r_star * od);
     const double s_n = 2.0 * p.e_star * sqrt_rd;
-    return Stiffness{(2.0 / 3.0) * s_n,     // 4/3 E* sqrt(R* delta)
+    return Stiffness{(2.0 / 3.0) * s_n,         // 4/3 E* sqrt(R* delta)
                      8.0 * p.g_star * sqrt_rd,  // = S_t
                      -k_two_sqrt_5_6 * p.beta * std::sqrt(s_n * m_star)};
   }

@@ -26,7 +26,7 @@ struct MindlinHistory {
 
   template <bool Update>
   [[gnu::always_inline]] static inline TangentialResult force(const Vec3& n, const Vec3& v_t, double k_t,
-                                                             double gamma_t, double f_cap, double dt, Vec3& history) {
+                                                              double gamma_t, double f_cap, double dt, Vec3& history) {
     Vec3 h = history;
     if constexpr (Update) h += v_t * dt;
     h -= h.dot(n) * n;
@@ -52,7 +52,7 @@ struct MindlinIncremental {
 
   template <bool Update>
   [[gnu::always_inline]] static inline TangentialResult force(const Vec3& n, const Vec3& v_t, double k_t,
-                                                             double gamma_t, double f_cap, double dt, Vec3& history) {
+                                                              double gamma_t, double f_cap, double dt, Vec3& history) {
     Vec3 h = history;
     const double old2 = h.squaredNorm();
     h -= h.dot(n) * n;

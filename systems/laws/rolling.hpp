@@ -20,14 +20,14 @@
 namespace sandcell {
 
 struct RollingInput {
-  const Vec3& n;      // unit normal, j to i
-  Vec3 w_rel;         // rad/s, w_i - w_j
-  double overlap;     // m
-  double f_n;         // N, normal force
-  double k_n, k_t;    // N/m
-  double r_star;      // m
-  double i_r;         // kg m^2, rolling inertia (epsd only)
-  double mu_r;        // -, rolling friction
+  const Vec3& n;    // unit normal, j to i
+  Vec3 w_rel;       // rad/s, w_i - w_j
+  double overlap;   // m
+  double f_n;       // N, normal force
+  double k_n, k_t;  // N/m
+  double r_star;    // m
+  double i_r;       // kg m^2, rolling inertia (epsd only)
+  double mu_r;      // -, rolling friction
 };
 
 /// k_r of the laws with a stored moment (epsd2, epsd), N m/rad.

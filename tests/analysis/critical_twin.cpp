@@ -52,7 +52,8 @@ int main(int argc, char** argv) {
       s >> comma >> x;
       if (comma != ',') break;
     }
-    if (!s || comma != ',') return fail(std::string(argv[1]) + ": row " + std::to_string(row) + " is not 'series,eps1,p,q,e'");
+    if (!s || comma != ',')
+      return fail(std::string(argv[1]) + ": row " + std::to_string(row) + " is not 'series,eps1,p,q,e'");
     Series& t = all[id];
     t.eps1.push_back(v[0]);
     t.p.push_back(v[1]);

@@ -133,9 +133,11 @@ TEST_CASE("triaxial: each class of bad input exits 2 naming the key, and clobber
       {"syntax", base + "[output\n", "TOML syntax error"},
       {"unknown key", with("material", "yuong = 1e9"), "material.yuong"},
       {"unknown section", base + "[materials]\ndensity = 1\n", "[materials]: unknown section"},
-      {"wrong type", with("shear", "critical_window = \"lots\""), "shear.critical_window = \"lots\": expected a number"},
+      {"wrong type", with("shear", "critical_window = \"lots\""),
+       "shear.critical_window = \"lots\": expected a number"},
       {"out of range", with("tests", "parallel = 0"), "tests.parallel = 0"},
-      {"cell narrower than 2 r_max + skin", std::string(base).replace(base.find("max_axial_strain = 0.03"), 23, "max_axial_strain = 2.0"),
+      {"cell narrower than 2 r_max + skin",
+       std::string(base).replace(base.find("max_axial_strain = 0.03"), 23, "max_axial_strain = 2.0"),
        "sample.count = 300: the cell would narrow to"},
       {"dt above the stability limit", with("time", "dt_fraction = 1.5"), "time.dt_fraction = 1.5"},
       // E = 1 MPa at p0 = 0.1 MPa: a mean overlap of ~0.8 R by Hertz (config.cpp).
@@ -144,7 +146,8 @@ TEST_CASE("triaxial: each class of bad input exits 2 naming the key, and clobber
       {"bad gradation", with("sample", "distribution = \"gradation\"\ngradation = [[0.005, 0], [0.004, 100]]"),
        "diameters must increase"},
       {"missing packing file", with("sample", "file = \"/nonexistent/packing.txt\""), "sample.file"},
-      {"ramp longer than the test", with("shear", "ramp_strain = 0.05"), "shear.ramp_strain = 0.05: must be below shear.max_axial_strain = 0.03"},
+      {"ramp longer than the test", with("shear", "ramp_strain = 0.05"),
+       "shear.ramp_strain = 0.05: must be below shear.max_axial_strain = 0.03"},
       // Each of the following hung, ran forever or ran meaninglessly before (issue 32).
       {"a gradation over 9 decades", with("sample", "distribution = \"gradation\"\ngradation = [[1e-9, 0], [1, 100]]"),
        "spans too wide a range to sample"},
@@ -152,15 +155,20 @@ TEST_CASE("triaxial: each class of bad input exits 2 naming the key, and clobber
        "sample.gradation = (2 rows): given with distribution = \"uniform\""},
       {"a modulus that makes dt vanish", std::string(base).replace(base.find("young = 1.0e9"), 13, "young = 1e308"),
        "material.young = 1e+308 Pa (dt = "},
-      {"a servo acting once per test", with("shear", "servo_interval = 1000000"), "shear.servo_interval = 1000000: the servo would act only every"},
-      {"a value 100 kB long", with("material", "density = \"" + std::string(100000, 'x') + "\""), "material.density = \"xxx"},
-      {"a skin wider than the spheres", std::string(base).replace(base.find("[material]"), 10, "[contact]\nskin = 1.0\n[material]"),
+      {"a servo acting once per test", with("shear", "servo_interval = 1000000"),
+       "shear.servo_interval = 1000000: the servo would act only every"},
+      {"a value 100 kB long", with("material", "density = \"" + std::string(100000, 'x') + "\""),
+       "material.density = \"xxx"},
+      {"a skin wider than the spheres",
+       std::string(base).replace(base.find("[material]"), 10, "[contact]\nskin = 1.0\n[material]"),
        "contact.skin = 1 m (wider than the largest sphere)"},
       {"both an axial rate and an inertial number", with("shear", "inertial_number = 2e-3"),
        "shear.strain_rate = 2 and shear.inertial_number = 0.002: give exactly one of the two"},
-      {"a non-positive inertial number", std::string(base).replace(base.find("strain_rate = 2.0"), 17, "inertial_number = 0.0"),
+      {"a non-positive inertial number",
+       std::string(base).replace(base.find("strain_rate = 2.0"), 17, "inertial_number = 0.0"),
        "shear.inertial_number = 0: must be in (0, 0.1]"},
-      {"neither an axial rate nor an inertial number", std::string(base).replace(base.find("strain_rate = 2.0"), 17, ""),
+      {"neither an axial rate nor an inertial number",
+       std::string(base).replace(base.find("strain_rate = 2.0"), 17, ""),
        "shear.strain_rate and shear.inertial_number: neither is given"},
   };
   for (const Case& c : cases) {
@@ -187,13 +195,15 @@ TEST_CASE("triaxial: each class of bad input exits 2 naming the key, and clobber
   // Bad command line: unknown option, --threads out of range, a NaN strain, a directory as the
   // config (it ran the embedded default), an --out too long for the file system (it aborted).
   CHECK(run({"--frobnicate"}).code == 2);
-  CHECK(run({"--max-axial-strain", "nan", "--out", dir.string()}).err.find("--max-axial-strain = nan") != std::string::npos);
+  CHECK(run({"--max-axial-strain", "nan", "--out", dir.string()}).err.find("--max-axial-strain = nan") !=
+        std::string::npos);
   const Result as_dir = run({dir.string(), "--out", (dir / "x").string()});
   CHECK(as_dir.code == 2);
   CHECK(as_dir.err.find("(a directory)") != std::string::npos);
   // A packing file with two coincident spheres: named, instead of "went unstable ... lower dt".
   write(dir / "packing.txt", "0.05 0.05 0.05 3\n0.01 0.01 0.01 0.003\n0.03 0.03 0.03 0.003\n0.01 0.01 0.01 0.003\n");
-  write(dir / "packed.toml", "[sample]\nfile = \"" + (dir / "packing.txt").string() + "\"\n[shear]\nstrain_rate = 1.0\n");
+  write(dir / "packed.toml",
+        "[sample]\nfile = \"" + (dir / "packing.txt").string() + "\"\n[shear]\nstrain_rate = 1.0\n");
   const Result coincident = run({(dir / "packed.toml").string(), "--out", (dir / "x").string()});
   CHECK(coincident.code == 2);
   CHECK(coincident.err.find("spheres 1 and 3 (in file order) overlap by 2 of the smaller radius") != std::string::npos);
@@ -293,9 +303,28 @@ TEST_CASE("triaxial: the embedded default runs end to end and writes the documen
   CHECK(r.out.find("warning") == std::string::npos);
   CHECK(r.err.find("warning") == std::string::npos);
   const fs::path results = dir / "p-b0.50-p0_500kPa.h5";
-  for (const char* name : {"time", "step", "strain", "stress", "principal_stress", "p", "q", "eta", "b", "theta",
-                           "eps_v", "eps_q", "e", "Z", "Z_mech", "fabric", "kinetic_energy", "elastic_energy", "max_overlap_ratio",
-                           "unbalanced_force_ratio", "inertial_number", "wall_time"}) {
+  for (const char* name : {"time",
+                           "step",
+                           "strain",
+                           "stress",
+                           "principal_stress",
+                           "p",
+                           "q",
+                           "eta",
+                           "b",
+                           "theta",
+                           "eps_v",
+                           "eps_q",
+                           "e",
+                           "Z",
+                           "Z_mech",
+                           "fabric",
+                           "kinetic_energy",
+                           "elastic_energy",
+                           "max_overlap_ratio",
+                           "unbalanced_force_ratio",
+                           "inertial_number",
+                           "wall_time"}) {
     CAPTURE(name);
     CHECK(has_link(results, std::string("/series/") + name));
   }
@@ -434,7 +463,8 @@ TEST_CASE("triaxial: the default thread count is the CPUs of the affinity mask (
   fs::remove_all(dir);
 }
 
-TEST_CASE("triaxial: a stop signal sets the stop request; a second one within 1 s is the same request, a later one exits at once") {
+TEST_CASE(
+    "triaxial: a stop signal sets the stop request; a second one within 1 s is the same request, a later one exits at once") {
   // In a child process, so the test runner keeps its own handlers.
   const pid_t pid = ::fork();
   REQUIRE(pid >= 0);
@@ -532,8 +562,10 @@ TEST_CASE("triaxial: a full disk is exit 1 naming the file, with no crash and no
   const fs::path dir = fresh_dir("full");
   const fs::path mnt = dir / "tmpfs";
   fs::create_directories(mnt);
-  if (::geteuid() != 0 || std::system(("mount -t tmpfs -o size=2m tmpfs '" + mnt.string() + "' 2>/dev/null").c_str()) != 0) {
-    MESSAGE("not root (or no tmpfs): the full-disk run is not exercised (tests/engine/test_io.cpp injects write failures)");
+  if (::geteuid() != 0 ||
+      std::system(("mount -t tmpfs -o size=2m tmpfs '" + mnt.string() + "' 2>/dev/null").c_str()) != 0) {
+    MESSAGE(
+        "not root (or no tmpfs): the full-disk run is not exercised (tests/engine/test_io.cpp injects write failures)");
     return;
   }
   write(dir / "small.toml", k_small);

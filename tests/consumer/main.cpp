@@ -16,7 +16,8 @@ int main(int, char** argv) {
   sandcell::add_sphere(state, model, 0, sandcell::Vec3(0.2, 0.5, 0.5), 0.01, 0);
   sandcell::add_sphere(state, model, 1, sandcell::Vec3(0.8, 0.5, 0.5), 0.01, 0);
   state.particles.velocity[0] = sandcell::Vec3(1.0, 0.0, 0.0);
-  sandcell::World world(model, state, sandcell::systems_for(model), sandcell::ExecutorConfig{sandcell::Backend::tbb, 2});
+  sandcell::World world(model, state, sandcell::systems_for(model),
+                        sandcell::ExecutorConfig{sandcell::Backend::tbb, 2});
   world.step(1000);
   const double x = world.state().particles.position[0].x();
   std::printf("consumer: x = %.12f\n", x);

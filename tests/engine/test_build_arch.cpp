@@ -14,7 +14,7 @@ using namespace sandcell;
 TEST_CASE("missing_isa lists the required features the CPU lacks, in table order") {
   // Bits as in engine/build_arch.cpp: 5 avx, 6 avx2, 8 bmi2, 13 avx512f.
   const unsigned avx = 1u << 5, avx2 = 1u << 6, bmi2 = 1u << 8, avx512f = 1u << 13;
-  CHECK(detail::missing_isa(0, 0).empty());                    // portable: needs nothing
+  CHECK(detail::missing_isa(0, 0).empty());                           // portable: needs nothing
   CHECK(detail::missing_isa(avx | avx2, avx | avx2 | bmi2).empty());  // more than needed is fine
   CHECK(detail::missing_isa(avx | avx2 | bmi2, avx) == std::vector<std::string>{"avx2", "bmi2"});
   CHECK(detail::missing_isa(avx512f | avx, 0) == std::vector<std::string>{"avx", "avx512f"});

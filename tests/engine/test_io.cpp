@@ -200,7 +200,8 @@ TEST_CASE("a checkpoint without rolling and without contacts round-trips") {
   model.dt = 1e-5;
   model.materials.push_back(Material{});
   model.contact.enabled = false;
-  World world(model, test::random_gas(model, 50, 0.05, 1e-3, 2e-3, 1.0, 10.0, 3), systems_for(model), ExecutorConfig{Backend::serial, 1});
+  World world(model, test::random_gas(model, 50, 0.05, 1e-3, 2e-3, 1.0, 10.0, 3), systems_for(model),
+              ExecutorConfig{Backend::serial, 1});
   world.step(10);
   REQUIRE(world.state().contacts.size() == 0);
   REQUIRE(!world.state().contacts.has_rolling);
@@ -218,7 +219,8 @@ TEST_CASE("a World rebuilt from a checkpoint continues bitwise identically to th
 
   // initial_forces = false: the checkpoint holds the forces of its step; recomputing them at setup
   // (with history frozen) would differ from those of the step and break continuation.
-  World resumed(model, read_checkpoint(dir.path / "mid.h5"), systems_for(model), ExecutorConfig{Backend::tbb, 2}, false);
+  World resumed(model, read_checkpoint(dir.path / "mid.h5"), systems_for(model), ExecutorConfig{Backend::tbb, 2},
+                false);
   original.step(250);
   resumed.step(250);
   // The restarted run crossed neighbour-list rebuilds (scratch is rebuilt, never restored).
@@ -399,7 +401,7 @@ TEST_CASE("results series: append and flush survive a killed writer, reopen cuts
     s.particles.velocity[0] = Vec3(7.0, 8.0, 9.0);
     r.write_snapshot(s);
     CHECK_THROWS_AS(r.append("stress", 1.0, "Pa"), std::invalid_argument);  // width 6, not 1
-    CHECK_THROWS_AS(r.append("time", 1.0, "ms"), std::invalid_argument);     // units differ
+    CHECK_THROWS_AS(r.append("time", 1.0, "ms"), std::invalid_argument);    // units differ
     r.set_attribute("tests/b0.5", "b", 0.5);
     r.set_attribute("tests/b0.5", "path", "constant p");
     r.close();
@@ -425,7 +427,8 @@ TEST_CASE("results series: append and flush survive a killed writer, reopen cuts
   CHECK(test.get_string("path") == "constant p");
   const h5::Group snap = root.open_group("snapshots").open_group("000000000400");
   CHECK(snap.get_value<std::uint64_t>("step") == 400);
-  CHECK(snap.get_values<double>("cell_length") == std::vector<double>{s.cell.length[0], s.cell.length[1], s.cell.length[2]});
+  CHECK(snap.get_values<double>("cell_length") ==
+        std::vector<double>{s.cell.length[0], s.cell.length[1], s.cell.length[2]});
   CHECK(snap.open_dataset("id").read<std::uint32_t>() == s.particles.id);
 }
 
@@ -440,9 +443,10 @@ TEST_CASE("a results file being written opens for reading with HDF5's default fi
   writer.flush();
   // The reader is h5py in another process (a forked child would share the parent's HDF5 state, in
   // which the file is already open), without HDF5_USE_FILE_LOCKING set: HDF5's default locking.
-  const std::string cmd = "env -u HDF5_USE_FILE_LOCKING /usr/bin/python3 -c \"import sys, h5py; "
-                          "f = h5py.File(sys.argv[1], 'r'); sys.exit(0 if f['series/step'].shape == (3,) else 3)\" '" +
-                          path.string() + "' 2>&1";
+  const std::string cmd =
+      "env -u HDF5_USE_FILE_LOCKING /usr/bin/python3 -c \"import sys, h5py; "
+      "f = h5py.File(sys.argv[1], 'r'); sys.exit(0 if f['series/step'].shape == (3,) else 3)\" '" +
+      path.string() + "' 2>&1";
   CHECK(std::system(cmd.c_str()) == 0);
   writer.append("step", 300.0, "-");  // the writer goes on
   writer.close();
@@ -516,7 +520,8 @@ TEST_CASE("a full disk stops a results file at a flush, readable with every row 
   TempDir dir("enospc");
   const fs::path mnt = dir.path / "tmpfs";
   fs::create_directories(mnt);
-  if (::geteuid() != 0 || std::system(("mount -t tmpfs -o size=6m tmpfs '" + mnt.string() + "' 2>/dev/null").c_str()) != 0) {
+  if (::geteuid() != 0 ||
+      std::system(("mount -t tmpfs -o size=6m tmpfs '" + mnt.string() + "' 2>/dev/null").c_str()) != 0) {
     MESSAGE("not root (or no tmpfs): the real full disk is not exercised here; the injected failure above is");
     return;
   }
@@ -639,7 +644,8 @@ TEST_CASE("the XDMF sidecar is well-formed XML and references existing datasets 
   CHECK(xml.find("TopologyType=\"Polyvertex\"") != std::string::npos);
   // Times are written so that they read back exactly.
   std::vector<double> times;
-  for (std::size_t pos = xml.find("<Time Value=\""); pos != std::string::npos; pos = xml.find("<Time Value=\"", pos + 1))
+  for (std::size_t pos = xml.find("<Time Value=\""); pos != std::string::npos;
+       pos = xml.find("<Time Value=\"", pos + 1))
     times.push_back(std::strtod(xml.c_str() + pos + 13, nullptr));
   CHECK(times == std::vector<double>{0.0, 1000 * model.dt, 2000 * model.dt});
   for (const char* attr : {"\"radius\"", "\"velocity\"", "\"angular_velocity\"", "\"force\"", "\"id\""})

@@ -24,7 +24,9 @@ std::set<std::string> scheduled(const World& world) {
 }
 
 // A dense jittered lattice (every lattice neighbour touching), moving and spinning.
-State dense(const Model& model) { return test::jittered_lattice(model, 4, 2e-3, 1.01e-3, 1.03e-3, 0.02e-3, 0.5, 50.0, 3); }
+State dense(const Model& model) {
+  return test::jittered_lattice(model, 4, 2e-3, 1.01e-3, 1.03e-3, 0.02e-3, 0.5, 50.0, 3);
+}
 
 }  // namespace
 

@@ -51,7 +51,8 @@ struct Observer {
 
 }  // namespace
 
-TEST_CASE("step(n) in one call is bitwise n calls of step(1): contacts with rolling, deforming cell, servo with kinetic stress") {
+TEST_CASE(
+    "step(n) in one call is bitwise n calls of step(1): contacts with rolling, deforming cell, servo with kinetic stress") {
   struct Config {
     const char* name;
     bool servo;
@@ -105,8 +106,7 @@ TEST_CASE("the final kick is not deferred when a system after integrate_final re
   for (std::size_t k = 0; k < forced.particles.size(); ++k) forced.particles.force[k] = Vec3(1e-3, -2e-3, 0.5e-3);
   auto run = [&](std::uint64_t calls, std::uint64_t per_call) {
     energy.clear();
-    World w(model, forced,
-            {make_system<IntegrateInitial>(), make_system<IntegrateFinal>(), make_system<Observer>()},
+    World w(model, forced, {make_system<IntegrateInitial>(), make_system<IntegrateFinal>(), make_system<Observer>()},
             ExecutorConfig{Backend::tbb, 2});
     CHECK_FALSE(w.defers_work());
     for (std::uint64_t c = 0; c < calls; ++c) w.step(per_call);

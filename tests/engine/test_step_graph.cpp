@@ -41,10 +41,10 @@ TEST_CASE("conflicting systems are ordered, independent ones get no edge") {
   for (int threads : {1, 2, 4}) {
     Executor exec({Backend::tbb, threads});
     StepGraph graph(systems, exec);
-    CHECK(graph.has_edge(0, 1));   // read after write
-    CHECK(graph.has_edge(1, 3));   // read after write
-    CHECK(graph.has_edge(2, 3));   // read after write
-    CHECK(graph.has_edge(3, 4));   // write after read
+    CHECK(graph.has_edge(0, 1));        // read after write
+    CHECK(graph.has_edge(1, 3));        // read after write
+    CHECK(graph.has_edge(2, 3));        // read after write
+    CHECK(graph.has_edge(3, 4));        // write after read
     CHECK_FALSE(graph.has_edge(1, 4));  // write-write, implied by 1 -> 3 -> 4: reduced away
     CHECK(graph.ordered(1, 4));
     CHECK(graph.ordered(0, 3));

@@ -26,12 +26,14 @@ class OneCpu {
   }
   ~OneCpu() {
     sched_setaffinity(0, sizeof saved_, &saved_);
-    if (had_slurm_) ::setenv("SLURM_CPUS_PER_TASK", slurm_.c_str(), 1);
-    else ::unsetenv("SLURM_CPUS_PER_TASK");
+    if (had_slurm_)
+      ::setenv("SLURM_CPUS_PER_TASK", slurm_.c_str(), 1);
+    else
+      ::unsetenv("SLURM_CPUS_PER_TASK");
   }
   OneCpu(const OneCpu&) = delete;
   OneCpu& operator=(const OneCpu&) = delete;
-  bool ok() const { return ok_; }                 // the mask was narrowed
+  bool ok() const { return ok_; }  // the mask was narrowed
   int cpus_before() const { return CPU_COUNT(&saved_); }
 
  private:

@@ -10,17 +10,17 @@
 namespace sandcell::test {
 
 struct TwoSphere {
-  double radius = 1e-3;       // m
-  double density = 2650.0;    // kg/m^3
-  double young = 70e9;        // Pa
-  double poisson = 0.3;       // -
-  double restitution = 0.5;   // -
-  double friction = 0.5;      // -
-  double v_n = 0.1;           // m/s, normal approach speed
-  double v_t = 0.0;           // m/s, tangential relative speed
-  double v_char = 0.1;        // m/s, hooke's characteristic velocity
-  double dt = 1e-7;           // s
-  double gap = 0.0;           // m, surface gap at start
+  double radius = 1e-3;      // m
+  double density = 2650.0;   // kg/m^3
+  double young = 70e9;       // Pa
+  double poisson = 0.3;      // -
+  double restitution = 0.5;  // -
+  double friction = 0.5;     // -
+  double v_n = 0.1;          // m/s, normal approach speed
+  double v_t = 0.0;          // m/s, tangential relative speed
+  double v_char = 0.1;       // m/s, hooke's characteristic velocity
+  double dt = 1e-7;          // s
+  double gap = 0.0;          // m, surface gap at start
   std::string normal = "hooke";
 };
 

@@ -52,8 +52,10 @@ BruteForce all_images(const State& s, double extra) {
             const Vec3 r = p.position[a] - (p.position[b] + Vec3(nx * L.x(), ny * L.y(), nz * L.z()));
             const double dist = r.norm();
             const Key k{p.id[a], p.id[b], Image{std::int8_t(nx), std::int8_t(ny), std::int8_t(nz)}};
-            if (std::abs(dist - cut) <= 1e-12 * cut) out.ties.insert(k);
-            else if (dist < cut) out.pairs.insert(k);
+            if (std::abs(dist - cut) <= 1e-12 * cut)
+              out.ties.insert(k);
+            else if (dist < cut)
+              out.pairs.insert(k);
           }
         }
       }
@@ -90,8 +92,8 @@ void check_same_pairs(const std::set<Key>& engine, const BruteForce& brute) {
   for (const Key& k : engine)
     if (!brute.pairs.count(k) && !brute.ties.count(k)) {
       if (++extra <= 5)
-        MESSAGE("extra pair " << std::get<0>(k) << "-" << std::get<1>(k) << " image (" << int(std::get<2>(k)[0])
-                              << "," << int(std::get<2>(k)[1]) << "," << int(std::get<2>(k)[2]) << ")");
+        MESSAGE("extra pair " << std::get<0>(k) << "-" << std::get<1>(k) << " image (" << int(std::get<2>(k)[0]) << ","
+                              << int(std::get<2>(k)[1]) << "," << int(std::get<2>(k)[2]) << ")");
     }
   CHECK(missing == 0);
   CHECK(extra == 0);
@@ -160,7 +162,8 @@ TEST_CASE("the pair list equals an all-images O(N^2) search, down to cells 1.05 
   CHECK(multi_image > 0);  // the narrow cells did exercise pairs touching through two images
 }
 
-TEST_CASE("radius ratio 10:1: the pair list still equals the all-images search (bins sized by r_max hold many small spheres)") {
+TEST_CASE(
+    "radius ratio 10:1: the pair list still equals the all-images search (bins sized by r_max hold many small spheres)") {
   const double r_min = 0.1e-3, r_max = 1e-3, skin = 0.05e-3;
   const double cut = 2.0 * r_max + skin;
   const Model model = default_model(1e-7, skin);
@@ -170,7 +173,8 @@ TEST_CASE("radius ratio 10:1: the pair list still equals the all-images search (
     const Vec3 box = shape * cut;
     // Radii uniform in [0.1, 1] mm: mean volume 4/3 pi <r^3> = 4/3 pi (1e-12 - 1e-16) / (4 * 0.9e-3);
     // 0.35 solid fraction.
-    const double mean_volume = 4.0 / 3.0 * 3.14159 * (std::pow(r_max, 4) - std::pow(r_min, 4)) / (4.0 * (r_max - r_min));
+    const double mean_volume =
+        4.0 / 3.0 * 3.14159 * (std::pow(r_max, 4) - std::pow(r_min, 4)) / (4.0 * (r_max - r_min));
     const auto n = std::max<std::size_t>(3, static_cast<std::size_t>(0.35 * box.prod() / mean_volume));
     for (int rep = 0; rep < 3; ++rep) {
       const State s = random_spheres(model, n, box, r_min, r_max, ++seed);
@@ -213,7 +217,8 @@ TEST_CASE("a pair touching through two images gets two contacts, with the force 
   CHECK(std::abs(st.particles.force[0].x()) < 1e-12 * f0.x());
 }
 
-TEST_CASE("in a deforming cell every touching pair stays listed between rebuilds, and each rebuild lists exactly the pairs within the cutoff") {
+TEST_CASE(
+    "in a deforming cell every touching pair stays listed between rebuilds, and each rebuild lists exactly the pairs within the cutoff") {
   // A dense polydisperse gas (solid fraction 0.39) on a jittered lattice, without initial
   // overlaps, with random velocities of a few m/s, in a cell compressed along x and stretched along
   // y and z: pairs meet and part, spheres cross the faces, and the list is rebuilt by the skin
@@ -240,7 +245,10 @@ TEST_CASE("in a deforming cell every touching pair stays listed between rebuilds
     const State& st = world.state();
     for (std::size_t k = 0; k < before.size(); ++k)
       for (int a = 0; a < 3; ++a)
-        if (std::abs(st.particles.position[k][a] - before[k][a]) > 0.5 * st.cell.length[a]) { ++wraps; wrapped[k] = 1; }
+        if (std::abs(st.particles.position[k][a] - before[k][a]) > 0.5 * st.cell.length[a]) {
+          ++wraps;
+          wrapped[k] = 1;
+        }
     std::set<Key> engine;
     for (std::size_t k = 0; k < st.contacts.size(); ++k)
       engine.insert(Key{st.contacts.pairs.id_i[k], st.contacts.pairs.id_j[k], st.contacts.pairs.image[k]});
@@ -260,9 +268,9 @@ TEST_CASE("in a deforming cell every touching pair stays listed between rebuilds
     }
   }
   const std::uint64_t n_builds = list_builds(world.scratch()) - builds0;
-  MESSAGE(n_builds << " rebuilds in " << steps << " steps; " << touching_checked
-                   << " touching pair-steps checked, " << touching_wrapped << " of them with a sphere wrapped since the last build ("
-                   << wraps << " wraps); cell now " << world.state().cell.length.transpose());
+  MESSAGE(n_builds << " rebuilds in " << steps << " steps; " << touching_checked << " touching pair-steps checked, "
+                   << touching_wrapped << " of them with a sphere wrapped since the last build (" << wraps
+                   << " wraps); cell now " << world.state().cell.length.transpose());
   CHECK(missing_total == 0);
   CHECK(rebuild_checks == n_builds);
   // The list is reused between builds (else this tests nothing) and rebuilt often enough to matter.
@@ -381,10 +389,11 @@ TEST_CASE("a sliding contact keeps its tangential and rolling history when a lis
   const auto [u_corner, m_corner] = run(Vec3(L - 0.5e-6, L - 0.3e-6, L - 0.7e-6), builds_corner, crossed_corner);
   const auto [u_bulk, m_bulk] = run(Vec3(0.5 * L, 0.5 * L, 0.5 * L), builds_bulk, crossed_bulk);
   MESSAGE("list builds " << builds_corner << " (corner) / " << builds_bulk << " (bulk); |u_t| " << u_corner.norm()
-                         << " / " << u_bulk.norm() << " m; |M_r| " << m_corner.norm() << " / " << m_bulk.norm() << " N m");
+                         << " / " << u_bulk.norm() << " m; |M_r| " << m_corner.norm() << " / " << m_bulk.norm()
+                         << " N m");
   CHECK(crossed_corner);
   CHECK(!crossed_bulk);
-  CHECK(builds_corner > 50);  // the wraps happen at list builds, many of them while touching
+  CHECK(builds_corner > 50);      // the wraps happen at list builds, many of them while touching
   REQUIRE(u_bulk.norm() > 1e-9);  // 150 steps of sliding and rolling: 4.5e-8 m (below the cap)
   REQUIRE(m_bulk.norm() > 0.0);
   CHECK((u_corner - u_bulk).norm() <= 1e-6 * u_bulk.norm());
@@ -495,7 +504,8 @@ State dyadic_pair(const Model& model, const Vec3& x0, const Vec3& branch) {
 
 }  // namespace
 
-TEST_CASE("a contact across a face, an edge or a corner (image (1,1,1)) gives bitwise the force of the same pair in the bulk") {
+TEST_CASE(
+    "a contact across a face, an edge or a corner (image (1,1,1)) gives bitwise the force of the same pair in the bulk") {
   Model model = default_model(1.0 / double(1 << 24));  // dyadic dt too
   model.materials[0].restitution = 0.5;
   model.materials[0].friction = 0.4;
@@ -622,7 +632,8 @@ TEST_CASE("translating a dense packing by any vector (positions wrapped) changes
         // Torques: lever arms <= R_max, rolling moments <= mu_r R* F_n: R_max times the force bound.
         if ((a.particles.torque[k] - b.particles.torque[k]).norm() > 1.03e-3 * factor * bound[k]) ++fails;
       }
-      MESSAGE(std::string(stage == 0 ? "setup" : "after 5 steps") << ": largest force change / round-off bound = " << worst_ratio);
+      MESSAGE(std::string(stage == 0 ? "setup" : "after 5 steps")
+              << ": largest force change / round-off bound = " << worst_ratio);
       CHECK(fails == 0);
       CHECK(a.contacts.size() == b.contacts.size());
       if (stage == 0) w.step(n_steps);

@@ -26,7 +26,8 @@ Vec3 branch(const State& s, std::size_t k) {
   const ContactPairs& p = s.contacts.pairs;
   const Image& n = p.image[k];
   return s.particles.position[p.i[k]] -
-         (s.particles.position[p.j[k]] + Vec3(n[0] * s.cell.length[0], n[1] * s.cell.length[1], n[2] * s.cell.length[2]));
+         (s.particles.position[p.j[k]] +
+          Vec3(n[0] * s.cell.length[0], n[1] * s.cell.length[1], n[2] * s.cell.length[2]));
 }
 
 // Neumaier (compensated) sum of vectors: its own rounding stays at eps |sum| + O(n eps^2) sum |x|.
@@ -35,8 +36,10 @@ struct CompensatedSum {
   void add(const Vec3& x) {
     for (int a = 0; a < 3; ++a) {
       const double t = sum[a] + x[a];
-      if (std::abs(sum[a]) >= std::abs(x[a])) c[a] += (sum[a] - t) + x[a];
-      else c[a] += (x[a] - t) + sum[a];
+      if (std::abs(sum[a]) >= std::abs(x[a]))
+        c[a] += (sum[a] - t) + x[a];
+      else
+        c[a] += (x[a] - t) + sum[a];
       sum[a] = t;
     }
   }
@@ -99,8 +102,8 @@ TEST_CASE("Newton's third law and the angular momentum balance hold for every co
   CompensatedSum total;
   for (std::size_t p = 0; p < n; ++p) total.add(st.particles.force[p]);
   const double bound = 2.0 * z_max * k_eps * sum_abs;
-  MESSAGE(touching << " touching contacts, z_max = " << z_max << ", |sum F| = " << total.value().norm()
-                   << " N, bound " << bound << " N, sum |F_c| = " << sum_abs << " N");
+  MESSAGE(touching << " touching contacts, z_max = " << z_max << ", |sum F| = " << total.value().norm() << " N, bound "
+                   << bound << " N, sum |F_c| = " << sum_abs << " N");
   CHECK(total.value().norm() <= bound);
   // The packing is a meaningful test: friction and rolling are active.
   CHECK(touching > 2 * n);
@@ -155,8 +158,8 @@ Energy energy_of(const State& s, double e_star) {
 }
 
 struct EnergyRun {
-  double max_dev = 0.0;   // max |E - E0| / E0
-  double end_dev = 0.0;   // (E_end - E0) / E0
+  double max_dev = 0.0;  // max |E - E0| / E0
+  double end_dev = 0.0;  // (E_end - E0) / E0
   Energy start, end;
 };
 
@@ -177,7 +180,8 @@ EnergyRun energy_run(const Model& model, const State& s, std::uint64_t steps, do
 
 }  // namespace
 
-TEST_CASE("elastic frictionless packing: total energy (kinetic + rotational + Hertz elastic) stays bounded over 1e4 steps") {
+TEST_CASE(
+    "elastic frictionless packing: total energy (kinetic + rotational + Hertz elastic) stays bounded over 1e4 steps") {
   Model model;
   Material mat;  // E = 70 GPa, nu = 0.3, rho = 2650
   mat.restitution = 1.0;
@@ -201,8 +205,8 @@ TEST_CASE("elastic frictionless packing: total energy (kinetic + rotational + He
                   << coarse.start.rotational << ", elastic " << coarse.start.elastic << "); at the end: kinetic "
                   << coarse.end.kinetic << ", elastic " << coarse.end.elastic);
   MESSAGE("dt = 0.1 dt_R: max |E - E0| / E0 = " << coarse.max_dev << ", drift at the end " << coarse.end_dev
-                                               << "; dt = 0.05 dt_R: " << fine.max_dev << ", " << fine.end_dev
-                                               << "; ratio " << coarse.max_dev / fine.max_dev);
+                                                << "; dt = 0.05 dt_R: " << fine.max_dev << ", " << fine.end_dev
+                                                << "; ratio " << coarse.max_dev / fine.max_dev);
   // Rotational energy is constant without tangential forces and rolling torques.
   CHECK(coarse.end.rotational == doctest::Approx(coarse.start.rotational).epsilon(1e-14));
   // Energy is exchanged: the test is not trivially passed by a frozen packing.
@@ -219,7 +223,8 @@ TEST_CASE("elastic frictionless packing: total energy (kinetic + rotational + He
   CHECK(coarse.max_dev / fine.max_dev < 6.0);
 }
 
-TEST_CASE("dense frictional packing with rolling, 500 steps: bitwise identical for 1, 2, 3, 8 threads and the serial backend") {
+TEST_CASE(
+    "dense frictional packing with rolling, 500 steps: bitwise identical for 1, 2, 3, 8 threads and the serial backend") {
   struct Config {
     const char* name;
     TangentialModel tangential;
@@ -231,10 +236,10 @@ TEST_CASE("dense frictional packing with rolling, 500 steps: bitwise identical f
   // The first scene holds ~3400 spheres and ~10^4 pairs: several parallel_for chunks of particles
   // (1024) and of pairs (4096), so the chunking and the gather are exercised.
   // One scene also reorders the particles along a Morton curve every 100 steps (spatial_sort).
-  const Config configs[] = {{"history + epsd2", TangentialModel::history, RollingModel::epsd2, 0.0, 15, 0},
-                            {"incremental + epsd with dashpot, spatial sort", TangentialModel::incremental,
-                             RollingModel::epsd, 0.3, 12, 100},
-                            {"history + cdt", TangentialModel::history, RollingModel::cdt, 0.0, 12, 0}};
+  const Config configs[] = {
+      {"history + epsd2", TangentialModel::history, RollingModel::epsd2, 0.0, 15, 0},
+      {"incremental + epsd with dashpot, spatial sort", TangentialModel::incremental, RollingModel::epsd, 0.3, 12, 100},
+      {"history + cdt", TangentialModel::history, RollingModel::cdt, 0.0, 12, 0}};
   for (const Config& c : configs) {
     INFO(c.name);
     Model model = test::quartz_model(1e-7, 0.3e-3);

@@ -82,17 +82,17 @@ double hertz_duration(const Effective& p, double v) {
 // moving -x; relative velocity v_0 - v_1 = (v_n, v_t, 0). The gap is (2 + phase) v_n dt, so the
 // contact starts inside the third step at a chosen fraction of it.
 struct Impact {
-  double t_in = -1.0, t_out = -1.0;  // s, delta = 0 crossings (linear interpolation between steps)
-  double delta_max = 0.0;            // m, largest overlap at a step
-  double f_max = 0.0;                // N, largest normal force at a step
-  double max_tilt = 0.0;             // rad, largest angle between the normal and -x during contact
-  Vec3 impulse = Vec3::Zero();       // N s, sum of F_0 dt: the impulse on sphere 0 (lab frame)
+  double t_in = -1.0, t_out = -1.0;     // s, delta = 0 crossings (linear interpolation between steps)
+  double delta_max = 0.0;               // m, largest overlap at a step
+  double f_max = 0.0;                   // N, largest normal force at a step
+  double max_tilt = 0.0;                // rad, largest angle between the normal and -x during contact
+  Vec3 impulse = Vec3::Zero();          // N s, sum of F_0 dt: the impulse on sphere 0 (lab frame)
   Vec3 angular_impulse = Vec3::Zero();  // N m s, sum of T_0 dt
-  double j_n = 0.0, j_n_abs = 0.0;   // N s, sum of F_n dt and of |F_n| dt (contact frame)
-  double j_t = 0.0;                  // N s, sum of |F_t| dt
-  double j_t_lever = 0.0;            // N m s, sum of (R - delta/2) |F_t| dt
-  std::vector<double> cap_ratio;     // |F_t| / (mu |F_n|) at each contact step (mu > 0)
-  std::vector<double> spring_ratio;  // k_t |u_t| / (mu |F_n|) at each contact step (mu > 0), u_t the history
+  double j_n = 0.0, j_n_abs = 0.0;      // N s, sum of F_n dt and of |F_n| dt (contact frame)
+  double j_t = 0.0;                     // N s, sum of |F_t| dt
+  double j_t_lever = 0.0;               // N m s, sum of (R - delta/2) |F_t| dt
+  std::vector<double> cap_ratio;        // |F_t| / (mu |F_n|) at each contact step (mu > 0)
+  std::vector<double> spring_ratio;     // k_t |u_t| / (mu |F_n|) at each contact step (mu > 0), u_t the history
   int contact_steps = 0;
   Vec3 v0_before, v1_before, v0_after, v1_after, w0_after, w1_after;
 };
@@ -165,9 +165,7 @@ Impact run_impact(const Material& mat, double dt, double v_n, double v_t, double
 }
 
 // Restitution of a head-on impact: -(relative normal velocity after) / (before).
-double restitution_of(const Impact& r) {
-  return -(r.v0_after - r.v1_after).x() / (r.v0_before - r.v1_before).x();
-}
+double restitution_of(const Impact& r) { return -(r.v0_after - r.v1_after).x() / (r.v0_before - r.v1_before).x(); }
 
 }  // namespace
 
@@ -191,10 +189,9 @@ TEST_CASE("head-on elastic impact: duration, peak overlap, peak force and reboun
       err_force[level] = std::abs(r.f_max / f_max - 1.0);
       err_speed[level] = std::abs(v_after / v - 1.0);
       MESSAGE("v = " << v << " m/s, dt = t_c/" << 200 * (1 << level) << ": t_c " << duration << " vs " << t_c
-                     << " s, delta_max " << r.delta_max << " vs " << delta_max << " m, F_max " << r.f_max
-                     << " vs " << f_max << " N, rebound " << v_after << " m/s; relative errors "
-                     << err_tc[level] << ", " << err_delta[level] << ", " << err_force[level] << ", "
-                     << err_speed[level]);
+                     << " s, delta_max " << r.delta_max << " vs " << delta_max << " m, F_max " << r.f_max << " vs "
+                     << f_max << " N, rebound " << v_after << " m/s; relative errors " << err_tc[level] << ", "
+                     << err_delta[level] << ", " << err_force[level] << ", " << err_speed[level]);
       // Tolerances: velocity Verlet is second order, so each error is C (dt/t_c)^2; we measure
       // C = 0.50 (duration), 0.31 (peak overlap), 0.47 (peak force), 0.03 (rebound speed), the same
       // at both speeds (the scheme is scale invariant when dt/t_c is fixed) and at both dt (the ratio
@@ -267,14 +264,15 @@ TEST_CASE("damped impact: the restitution does not depend on the impact speed an
       double worst = 0.0;
       for (double phase : {0.0, 0.25, 0.5, 0.75})
         worst = std::max(worst, std::abs(restitution_of(run_impact(mat, t_c / n, 0.1, 0.0, phase)) - e_in));
-      MESSAGE("input e = " << e_in << ", dt = t_c/" << n << ": largest |e - e_in| over 4 phases = " << worst
-                           << " = " << worst * n << " dt/t_c");
+      MESSAGE("input e = " << e_in << ", dt = t_c/" << n << ": largest |e - e_in| over 4 phases = " << worst << " = "
+                           << worst * n << " dt/t_c");
       CHECK(worst < bound / n);
     }
   }
 }
 
-TEST_CASE("oblique impact in gross sliding: tangential impulse = mu x normal impulse, rigid-body spin and velocity changes") {
+TEST_CASE(
+    "oblique impact in gross sliding: tangential impulse = mu x normal impulse, rigid-body spin and velocity changes") {
   // v_t / v_n = 10, far above the gross-sliding threshold 3.5 mu (1 + e) = 2.1 (the contact point's
   // relative tangential velocity drops by 7 J_t / m = 3.5 mu (1 + e) v_n over the impact), so the
   // tangential force sits on the Coulomb cap at every step of the contact.
@@ -313,8 +311,8 @@ TEST_CASE("oblique impact in gross sliding: tangential impulse = mu x normal imp
     MESSAGE("e = " << e_in << ": J_n = " << r.j_n << " N s (sum |F_n| dt = " << r.j_n_abs << "), J_t = " << r.j_t
                    << " N s, J_t / J_n = " << r.j_t / r.j_n << ", J_t / (mu sum |F_n| dt) - 1 = " << excess << "; "
                    << off_cap << " of " << r.contact_steps << " contact steps off the cap (largest |F_t| / mu |F_n| "
-                   << *std::max_element(r.cap_ratio.begin(), r.cap_ratio.end()) << "); largest tilt of the normal = "
-                   << tilt << " rad, delta_max = " << r.delta_max << " m");
+                   << *std::max_element(r.cap_ratio.begin(), r.cap_ratio.end())
+                   << "); largest tilt of the normal = " << tilt << " rad, delta_max = " << r.delta_max << " m");
     CHECK(rule_broken == 0);
     CHECK(worst_on_cap < 1e-13);
     if (e_in == 1.0) {
@@ -333,8 +331,9 @@ TEST_CASE("oblique impact in gross sliding: tangential impulse = mu x normal imp
     // (1.2 (dt/t_c) e (1 - e) at dt = t_c/400), the O((dt/t_c)^2) orbit error, and the turn of the
     // normal: the relative velocity's projection on it changes by up to v_t sin(tilt), i.e. by
     // (v_t / v_n) tilt relative to v_n.
-    CHECK(r.j_n == doctest::Approx((1.0 + e_in) * p.m_star * v_n)
-                       .epsilon(3e-3 * e_in * (1.0 - e_in) + 2e-5 + (v_t / v_n) * tilt));
+    CHECK(
+        r.j_n ==
+        doctest::Approx((1.0 + e_in) * p.m_star * v_n).epsilon(3e-3 * e_in * (1.0 - e_in) + 2e-5 + (v_t / v_n) * tilt));
 
     // Rigid-body relations. Lab-frame velocity and spin changes are the lab impulses over m and I
     // (what the integrator does; round-off):
@@ -397,7 +396,8 @@ double overlap_of(const State& s) {
 
 }  // namespace
 
-TEST_CASE("sticking: a prescribed tangential displacement u gives F_t = k_t u, k_t = 8 G* sqrt(R* delta), then the Coulomb cap") {
+TEST_CASE(
+    "sticking: a prescribed tangential displacement u gives F_t = k_t u, k_t = 8 G* sqrt(R* delta), then the Coulomb cap") {
   // Sphere 1 is given a tangential velocity v (+y) at fixed positions: the LIGGGHTS spring integrates
   // the contact velocity, u_t += v_t dt, so after N steps u = N v dt exactly and the force on sphere 0
   // is +k_t u along y (it is dragged along), until k_t u reaches mu F_n.
@@ -445,7 +445,8 @@ TEST_CASE("sticking: a prescribed tangential displacement u gives F_t = k_t u, k
   }
 }
 
-TEST_CASE("sticking with damping and by rotation: F_t = -k_t u_t - gamma_t v_t, v_t including n x (c_i w_i + c_j w_j)") {
+TEST_CASE(
+    "sticking with damping and by rotation: F_t = -k_t u_t - gamma_t v_t, v_t including n x (c_i w_i + c_j w_j)") {
   const double mu = 0.5, delta0 = 1e-6, dt = 1e-8;
   const double e_in = 0.4;
   const Material mat = material(e_in, mu);
@@ -475,10 +476,12 @@ TEST_CASE("sticking with damping and by rotation: F_t = -k_t u_t - gamma_t v_t, 
   CHECK(q.torque[0].z() == doctest::Approx(-lever * f_t).epsilon(tol));
   CHECK(q.torque[1].z() == doctest::Approx(-lever * f_t).epsilon(tol));
   // No normal damping: v_n = 0.
-  CHECK(q.force[0].x() == doctest::Approx(-4.0 / 3.0 * p.e_star * std::sqrt(p.r_star) * std::pow(delta, 1.5)).epsilon(1e-13));
+  CHECK(q.force[0].x() ==
+        doctest::Approx(-4.0 / 3.0 * p.e_star * std::sqrt(p.r_star) * std::pow(delta, 1.5)).epsilon(1e-13));
 }
 
-TEST_CASE("history vs incremental: equal at constant normal load, differ as designed when the overlap changes, and the history resets on opening") {
+TEST_CASE(
+    "history vs incremental: equal at constant normal load, differ as designed when the overlap changes, and the history resets on opening") {
   // Load tangentially by u at overlap delta1, then push to delta2 = 4 delta1 with no tangential
   // motion. History form: F_t = k_t(delta2) u (the spring is re-read with the new stiffness: twice
   // the force, as sqrt(4) = 2). Incremental form: the stored force k_t(delta1) u is kept.
@@ -523,7 +526,8 @@ TEST_CASE("history vs incremental: equal at constant normal load, differ as desi
   CHECK(f_after[0] == doctest::Approx(2.0 * f_after[1]).epsilon(1e-8));
 }
 
-TEST_CASE("the affine velocity D r of a deforming cell enters the contact's relative velocity, unless liggghts_compat") {
+TEST_CASE(
+    "the affine velocity D r of a deforming cell enters the contact's relative velocity, unless liggghts_compat") {
   // Two spheres at rest (v~ = 0) in a cell with velocity gradient D = diag(10, -5, 0) 1/s, held
   // by the contact systems only (no integrator: the positions and the cell stay as set). docs/physics.md
   // section 1: v_rel = (v~_i - v~_j) + D r_ij, so the contact sees the affine motion of the branch vector

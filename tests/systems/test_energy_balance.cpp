@@ -72,11 +72,11 @@ struct Law {
 // A contact at the end of a step, as the engine left it (forces, histories) and as the test reads
 // the law there (spring and dashpot parts).
 struct Contact {
-  Vec3 f = Vec3::Zero(), t_i = Vec3::Zero(), t_j = Vec3::Zero();      // engine: force on i, torques
-  Vec3 u = Vec3::Zero(), m = Vec3::Zero();                            // engine: tangential, rolling history
-  Vec3 fs = Vec3::Zero(), ts_i = Vec3::Zero(), ts_j = Vec3::Zero();   // springs: force on i, torques
-  Vec3 fn_d = Vec3::Zero();                                           // normal dashpot
-  Vec3 ft_d = Vec3::Zero(), td_i = Vec3::Zero(), td_j = Vec3::Zero(); // tangential dashpot, torques
+  Vec3 f = Vec3::Zero(), t_i = Vec3::Zero(), t_j = Vec3::Zero();       // engine: force on i, torques
+  Vec3 u = Vec3::Zero(), m = Vec3::Zero();                             // engine: tangential, rolling history
+  Vec3 fs = Vec3::Zero(), ts_i = Vec3::Zero(), ts_j = Vec3::Zero();    // springs: force on i, torques
+  Vec3 fn_d = Vec3::Zero();                                            // normal dashpot
+  Vec3 ft_d = Vec3::Zero(), td_i = Vec3::Zero(), td_j = Vec3::Zero();  // tangential dashpot, torques
   double k_t = 0.0, k_r = 0.0;
   double e = 0.0;  // spring energy: Hertz + 1/2 k_t u^2 + M^2 / (2 k_r)
   double e_t = 0.0, e_r = 0.0;
@@ -84,13 +84,13 @@ struct Contact {
 };
 
 struct Ledger {
-  double w_cell = 0.0;                                    // -sum fbar . (D r_n) dt
-  double w_stress = 0.0, w_lag = 0.0, w_abs = 0.0;        // homogenizer check (see below)
+  double w_cell = 0.0;                              // -sum fbar . (D r_n) dt
+  double w_stress = 0.0, w_lag = 0.0, w_abs = 0.0;  // homogenizer check (see below)
   double d_n = 0.0, d_t = 0.0, d_slip = 0.0, d_roll = 0.0;
   double proj = 0.0, twist = 0.0, s_kt = 0.0, s_kr = 0.0;
   double q = 0.0;
-  double abs_sum = 0.0;      // sum of |terms| booked, for the round-off bound
-  std::size_t terms = 0;     // contact-steps booked
+  double abs_sum = 0.0;   // sum of |terms| booked, for the round-off bound
+  std::size_t terms = 0;  // contact-steps booked
   std::size_t max_pairs = 0;
   std::size_t wraps = 0, touching_wrapped = 0, slipping = 0, rolling_capped = 0;
   std::size_t lost = 0;  // touching contacts that left the list (never: see Books::visit)
@@ -168,8 +168,8 @@ class Books {
       }
       const std::uint64_t key = key_of(pairs.id_i[k], pairs.id_j[k], invariant);
       Contact c0;  // level n (zero: the pair was not listed)
-      const auto it = std::lower_bound(prev_.begin(), prev_.end(), key,
-                                       [](const Keyed& a, std::uint64_t b) { return a.key < b; });
+      const auto it =
+          std::lower_bound(prev_.begin(), prev_.end(), key, [](const Keyed& a, std::uint64_t b) { return a.key < b; });
       if (it != prev_.end() && it->key == key) {
         c0 = it->c;
         used_[it - prev_.begin()] = 1;
@@ -370,8 +370,8 @@ void print(const std::string& name, const Run& r) {
                << "\n  W_cell " << l.w_cell << " J (initial K* " << r.k0 << ", E_el " << r.e0 << ")"
                << "\n  = dK* " << r.k1 - r.k0 << " + dE_el " << r.e1 - r.e0 << "\n  + D_n " << l.d_n << " + D_t "
                << l.d_t << " + D_slip " << l.d_slip << " + D_roll " << l.d_roll << "\n  + proj " << l.proj
-               << " + twist " << l.twist << " - S_kt " << l.s_kt << " - S_kr " << l.s_kr << "\n  + Q " << l.q
-               << " (" << l.q / l.w_cell << " of W_cell) + closure " << r.residual() - l.q << " (round-off bound "
+               << " + twist " << l.twist << " - S_kt " << l.s_kt << " - S_kr " << l.s_kr << "\n  + Q " << l.q << " ("
+               << l.q / l.w_cell << " of W_cell) + closure " << r.residual() - l.q << " (round-off bound "
                << r.round_off() << ")");
 }
 
@@ -424,10 +424,10 @@ TwoSteps run_at_two_dt(const Model& base, const State& s, const std::string& lab
   return t;
 }
 
-
 }  // namespace
 
-TEST_CASE("frictionless elastic packing compressed by the cell: its work is the kinetic plus Hertz energy, up to the trapezoid's defect, second order in dt") {
+TEST_CASE(
+    "frictionless elastic packing compressed by the cell: its work is the kinetic plus Hertz energy, up to the trapezoid's defect, second order in dt") {
   Model base = test::quartz_model(1.0, 0.02e-3);
   base.materials[0].restitution = 1.0;
   base.materials[0].friction = 0.0;
@@ -452,7 +452,8 @@ TEST_CASE("frictionless elastic packing compressed by the cell: its work is the 
   CHECK(coarse.l.q / fine.l.q > 2.5);
 }
 
-TEST_CASE("frictional, damped packing with rolling resistance compressed by the cell: work = kinetic + elastic + dissipated, closed to round-off") {
+TEST_CASE(
+    "frictional, damped packing with rolling resistance compressed by the cell: work = kinetic + elastic + dissipated, closed to round-off") {
   Model base = test::quartz_model(1.0, 0.02e-3);  // e = 0.5, mu = 0.5, mu_r = 0.1, epsd2, history law
   const State s = scene(base, 1, 0.0);
   const auto [coarse, fine] = run_at_two_dt(base, s, "quartz");
@@ -486,7 +487,8 @@ TEST_CASE("frictional, damped packing with rolling resistance compressed by the 
 // contact whose sphere was wrapped under its new image (old image - s_i + s_j). Before that fix
 // such a contact lost its tangential and rolling history: 5.6e-4 J of spring energy vanished here
 // without work (1e-3 of W_cell, not shrinking with dt), and this case failed.
-TEST_CASE("the same packing translated by half a lattice spacing, spheres crossing the faces while touching: the ledger still closes") {
+TEST_CASE(
+    "the same packing translated by half a lattice spacing, spheres crossing the faces while touching: the ledger still closes") {
   // A rigid translation changes no physics. Spheres now sit on the faces and are wrapped at list
   // builds while touching partners across the face; their pairs change image, and their
   // tangential and rolling histories must follow them.

@@ -76,7 +76,8 @@ Chain two_sphere_chain(double dt_over_limit, double v_rel) {
 
 }  // namespace
 
-TEST_CASE("time step at 0.9 of the exact stability limit: two spheres touching through two images oscillate as discrete Verlet predicts") {
+TEST_CASE(
+    "time step at 0.9 of the exact stability limit: two spheres touching through two images oscillate as discrete Verlet predicts") {
   // Relative speed v: continuous amplitude A = v / omega. Discrete Verlet with h omega = 1.8 gives
   // u_n = C sin(n theta), cos theta = 1 - (h omega)^2 / 2 = -0.62, and from u_0 = 0, u_1 = h v:
   // C = h v / sin(theta) = 2.294 A. A = 1 % of delta0 keeps the Hertz spring linear to ~1 %.
@@ -107,7 +108,8 @@ TEST_CASE("time step at 0.9 of the exact stability limit: two spheres touching t
   CHECK(world.state().contacts.size() == 2);
 }
 
-TEST_CASE("time step at 1.5 of the stability limit: the same chain blows up and stops with the step, the particle and the quantity") {
+TEST_CASE(
+    "time step at 1.5 of the stability limit: the same chain blows up and stops with the step, the particle and the quantity") {
   Chain c = two_sphere_chain(1.5, 1e-4);
   World world(c.model, c.state, systems_for(c.model), ExecutorConfig{Backend::serial});
   std::string error;
@@ -131,7 +133,8 @@ TEST_CASE("time step at 1.5 of the stability limit: the same chain blows up and 
   CHECK(steps < 20);
 }
 
-TEST_CASE("a run that blows up inside one step(n) call stops at the same step, with the same state and message, as one step per call") {
+TEST_CASE(
+    "a run that blows up inside one step(n) call stops at the same step, with the same state and message, as one step per call") {
   // step(n) defers the final half kick of all but its last step (World::defers_final_kick); when a
   // step fails, the state handed back must still be the end of that step, as with step(1) calls.
   Chain c = two_sphere_chain(1.5, 1e-4);
@@ -157,7 +160,8 @@ TEST_CASE("a run that blows up inside one step(n) call stops at the same step, w
   CHECK(first_difference(batched.state().particles, single.state().particles) == "");
 }
 
-TEST_CASE("a sphere crossing six skins in one step into contact: the list is rebuilt that step and the force is Hertz's") {
+TEST_CASE(
+    "a sphere crossing six skins in one step into contact: the list is rebuilt that step and the force is Hertz's") {
   // dt = 1e-7 s, skin 0.05 mm; sphere 0 starts 0.3 mm (6 skins) from sphere 1 and moves at
   // (0.3 mm + 2 um) / dt: after one step it overlaps sphere 1 by 2 um, a move under the smallest
   // radius (no instability), far beyond the skin the old list was good for.
@@ -248,7 +252,8 @@ TEST_CASE("N = 1: a lone sphere in a deforming cell meets nothing, not even its 
   CHECK(std::isfinite(m.void_ratio));
 }
 
-TEST_CASE("friction 0 and 10 in an oblique impact: no tangential force at all; a tangential spring that slides only where F_n vanishes") {
+TEST_CASE(
+    "friction 0 and 10 in an oblique impact: no tangential force at all; a tangential spring that slides only where F_n vanishes") {
   constexpr double R = 1e-3, v_n = 1.0, v_t = 0.5, dt = 2e-8;
   for (const double mu : {0.0, 10.0}) {
     CAPTURE(mu);
@@ -301,7 +306,8 @@ TEST_CASE("friction 0 and 10 in an oblique impact: no tangential force at all; a
       // Mindlin: |F_t| / F_n ~ k_t u / k_n delta grows without bound as delta -> 0 for a given u,
       // so even mu = 10 is reached where F_n vanishes, at the very start and end of the contact,
       // and nowhere else.
-      MESSAGE("mu = 10: " << capped.size() << " of " << contact_steps << " contact steps at the cap; largest |F_t + k_t u_t| / |F_t| below it = " << worst_spring);
+      MESSAGE("mu = 10: " << capped.size() << " of " << contact_steps
+                          << " contact steps at the cap; largest |F_t + k_t u_t| / |F_t| below it = " << worst_spring);
       for (const int k : capped) CHECK((k < contact_steps / 20 || k >= contact_steps - contact_steps / 20));
       CHECK(capped.size() < static_cast<std::size_t>(contact_steps / 10));
       CHECK(worst_spring < 1e-12);
@@ -351,7 +357,8 @@ Compression compression(double young, double p0, double rate_scale = 1.0) {
 
 }  // namespace
 
-TEST_CASE("E from 1e6 to 1e12 Pa and p0 from 1 kPa to 100 MPa: the same physics in Hertz's units, correct pressure, overlap as Hertz says") {
+TEST_CASE(
+    "E from 1e6 to 1e12 Pa and p0 from 1 kPa to 100 MPa: the same physics in Hertz's units, correct pressure, overlap as Hertz says") {
   // Quasi-static Hertzian packings have one dimensionless control, p / E*: with lengths fixed,
   // forces scale as E, times as 1/sqrt(E) (the Rayleigh time), rates and gains as sqrt(E). Scaled
   // by 2^16 (E and p0) and 2^8 (dt, servo gain, rate cap), every floating-point operation of the
@@ -372,12 +379,13 @@ TEST_CASE("E from 1e6 to 1e12 Pa and p0 from 1 kPa to 100 MPa: the same physics 
   b.step(30000);
   const Measures ma = measure(a.model(), a.state(), a.executor());
   const Measures mb = measure(b.model(), b.state(), b.executor());
-  MESSAGE("E 1e6 / 6.55e10 Pa: p = " << ma.inv.p << " / " << mb.inv.p << " Pa (target 1e3 / 6.55e7), e = " << ma.void_ratio
-                                     << " / " << mb.void_ratio << ", Z = " << ma.z << ", max overlap/R " << ma.max_overlap_ratio);
+  MESSAGE("E 1e6 / 6.55e10 Pa: p = " << ma.inv.p << " / " << mb.inv.p
+                                     << " Pa (target 1e3 / 6.55e7), e = " << ma.void_ratio << " / " << mb.void_ratio
+                                     << ", Z = " << ma.z << ", max overlap/R " << ma.max_overlap_ratio);
   CHECK(a.state().particles.position == b.state().particles.position);
   CHECK(ma.void_ratio == mb.void_ratio);
   CHECK(mb.inv.p == ma.inv.p * scale);
-  CHECK(std::abs(ma.inv.p - 1e3) < 0.01 * 1e3);  // the servo's criterion: p0 within 1 %
+  CHECK(std::abs(ma.inv.p - 1e3) < 0.01 * 1e3);         // the servo's criterion: p0 within 1 %
   CHECK(ma.kinetic_energy < 1e-2 * ma.elastic_energy);  // at rest on its contacts, not a gas (app's safe range)
 
   // The stiff end: E = 1e12 at p0 = 10 and 100 MPa (p/E* 1.8e-5, 1.8e-4), and the soft one again
@@ -396,8 +404,8 @@ TEST_CASE("E from 1e6 to 1e12 Pa and p0 from 1 kPa to 100 MPa: the same physics 
     const double e_star = e_star_of(c.model.materials[0]);
     const double estimate =
         std::pow(3.0 * std::sqrt(2.0) * std::numbers::pi * p0 / (m.solid_fraction * m.z * e_star), 2.0 / 3.0);
-    MESSAGE("E = " << young << " Pa, p0 = " << p0 << " Pa: p = " << m.inv.p << " Pa, e = " << m.void_ratio << ", Z = " << m.z
-                   << ", Z_mech = " << m.z_mech << ", Ek/Ee " << m.kinetic_energy / m.elastic_energy
+    MESSAGE("E = " << young << " Pa, p0 = " << p0 << " Pa: p = " << m.inv.p << " Pa, e = " << m.void_ratio
+                   << ", Z = " << m.z << ", Z_mech = " << m.z_mech << ", Ek/Ee " << m.kinetic_energy / m.elastic_energy
                    << ", max overlap/R " << m.max_overlap_ratio << " (Hertz mean estimate " << estimate << ")");
     CHECK(all_finite(w.state()));
     CHECK(std::abs(m.inv.p - p0) < 0.01 * p0);

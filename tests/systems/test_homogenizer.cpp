@@ -39,7 +39,8 @@ TEST_CASE("homogenizer: strained simple-cubic lattice gives the analytic Hertz s
   ParticleId id = 0;
   for (int z = 0; z < n; ++z)
     for (int y = 0; y < n; ++y)
-      for (int x = 0; x < n; ++x) add_sphere(s, model, id++, Vec3((x + 0.5) * a[0], (y + 0.5) * a[1], (z + 0.5) * a[2]), r, 0);
+      for (int x = 0; x < n; ++x)
+        add_sphere(s, model, id++, Vec3((x + 0.5) * a[0], (y + 0.5) * a[1], (z + 0.5) * a[2]), r, 0);
   World world(model, std::move(s), systems_for(model), ExecutorConfig{Backend::serial});
   const Measures m = measure(world.model(), world.state(), world.executor());
   const double es = e_star(model.materials[0]);
@@ -93,7 +94,8 @@ TEST_CASE("homogenizer: stress is symmetric and equals the virial of independent
       for (int nx = -1; nx <= 1; ++nx)
         for (int ny = -1; ny <= 1; ++ny)
           for (int nz = -1; nz <= 1; ++nz) {
-            const Vec3 r = p.position[i] - p.position[j] - Vec3(nx * st.cell.length[0], ny * st.cell.length[1], nz * st.cell.length[2]);
+            const Vec3 r = p.position[i] - p.position[j] -
+                           Vec3(nx * st.cell.length[0], ny * st.cell.length[1], nz * st.cell.length[2]);
             const double d = r.norm(), overlap = p.radius[i] + p.radius[j] - d;
             if (overlap <= 0.0) continue;
             const double rs = p.radius[i] * p.radius[j] / (p.radius[i] + p.radius[j]);

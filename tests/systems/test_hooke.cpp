@@ -21,8 +21,8 @@ using namespace sandcell;
 namespace {
 
 struct Collision {
-  double e = 0.0;         // -, rebound / approach relative normal speed
-  double t_c = 0.0;       // s, contact time (overlap crossings interpolated linearly between steps)
+  double e = 0.0;            // -, rebound / approach relative normal speed
+  double t_c = 0.0;          // s, contact time (overlap crossings interpolated linearly between steps)
   double max_overlap = 0.0;  // m, largest overlap at the end of a step
 };
 
@@ -36,7 +36,8 @@ Oscillator oscillator(const test::TwoSphere& s) {
   const double e_star = 1.0 / (2.0 * (1.0 - s.poisson * s.poisson) / s.young);
   const double k_n = Hooke::normal_stiffness(e_star, s.v_char, 0.5 * s.radius, m_star);
   const double log_e = std::log(s.restitution);
-  const double gamma_n = std::sqrt(4.0 * m_star * k_n * log_e * log_e / (log_e * log_e + std::numbers::pi * std::numbers::pi));
+  const double gamma_n =
+      std::sqrt(4.0 * m_star * k_n * log_e * log_e / (log_e * log_e + std::numbers::pi * std::numbers::pi));
   const double zeta = gamma_n / (2.0 * m_star);
   return Oscillator{k_n, m_star, gamma_n, std::numbers::pi / std::sqrt(k_n / m_star - zeta * zeta)};
 }
@@ -137,7 +138,7 @@ TEST_CASE("hooke: the law is linear: the same collision at ten times the speed s
   const double t_c = oscillator(slow).t_c;
   const Collision a = collide(slow, t_c), b = collide(fast, t_c);
   MESSAGE("relative differences: e " << b.e / a.e - 1.0 << ", t_c " << b.t_c / a.t_c - 1.0 << ", overlap "
-                                      << b.max_overlap / (10.0 * a.max_overlap) - 1.0);
+                                     << b.max_overlap / (10.0 * a.max_overlap) - 1.0);
   CHECK(b.e == doctest::Approx(a.e).epsilon(1e-9));
   CHECK(b.t_c == doctest::Approx(a.t_c).epsilon(1e-9));
   CHECK(b.max_overlap == doctest::Approx(10.0 * a.max_overlap).epsilon(1e-9));
@@ -187,5 +188,6 @@ TEST_CASE("contact laws: a bad law name or parameter is refused, naming it and w
   model = test::two_sphere_model(s);
   model.contact.normal = "hertz";
   model.contact.parameters["characteristic_velocity"] = 1.0;
-  CHECK(message(model) == "contact.parameters.characteristic_velocity: not a parameter of the hertz law (it takes none)");
+  CHECK(message(model) ==
+        "contact.parameters.characteristic_velocity: not a parameter of the hertz law (it takes none)");
 }

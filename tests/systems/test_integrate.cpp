@@ -17,9 +17,7 @@ Model one_material(double dt) {
   m.materials.push_back(Material{});
   return m;
 }
-std::vector<SystemSpec> integrator_only() {
-  return {make_system<IntegrateInitial>(), make_system<IntegrateFinal>()};
-}
+std::vector<SystemSpec> integrator_only() { return {make_system<IntegrateInitial>(), make_system<IntegrateFinal>()}; }
 }  // namespace
 
 TEST_CASE("a free particle moves exactly x + (v~ + D x) dt per step and wraps across every face") {
@@ -28,7 +26,7 @@ TEST_CASE("a free particle moves exactly x + (v~ + D x) dt per step and wraps ac
   s.cell.length = s.cell.length0 = Vec3(1.0, 2.0, 3.0);
   s.cell.rate = Vec3(0.01, -0.02, 0.03);
   // One particle heading out through each of the six faces.
-  const Vec3 starts[6] = {{0.999, 1, 1.5}, {0.001, 1, 1.5}, {0.5, 1.999, 1.5},
+  const Vec3 starts[6] = {{0.999, 1, 1.5},   {0.001, 1, 1.5}, {0.5, 1.999, 1.5},
                           {0.5, 0.001, 1.5}, {0.5, 1, 2.999}, {0.5, 1, 0.001}};
   const Vec3 vels[6] = {{3, 0, 0}, {-3, 0, 0}, {0, 3, 0}, {0, -3, 0}, {0, 0, 3}, {0, 0, -3}};
   for (int k = 0; k < 6; ++k) {
@@ -48,8 +46,13 @@ TEST_CASE("a free particle moves exactly x + (v~ + D x) dt per step and wraps ac
     for (int k = 0; k < 6; ++k) {
       Vec3 e = x[k] + (vels[k] + s.cell.rate.cwiseProduct(x[k])) * model.dt;
       for (int a = 0; a < 3; ++a) {
-        if (e[a] >= length[a]) { e[a] -= length[a]; ++wraps[k]; }
-        else if (e[a] < 0.0) { e[a] += length[a]; ++wraps[k]; }
+        if (e[a] >= length[a]) {
+          e[a] -= length[a];
+          ++wraps[k];
+        } else if (e[a] < 0.0) {
+          e[a] += length[a];
+          ++wraps[k];
+        }
       }
       x[k] = e;
       REQUIRE(world.state().particles.position[k] == x[k]);

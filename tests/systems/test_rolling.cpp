@@ -31,7 +31,7 @@ constexpr double k_eps = std::numeric_limits<double>::epsilon();
 Model rolling_model(RollingModel rolling, double dt, double eta_r = 0.0, double mu_r = k_mu_r) {
   Model m;
   m.dt = dt;
-  Material mat;  // E = 70 GPa, nu = 0.3, rho = 2650
+  Material mat;           // E = 70 GPa, nu = 0.3, rho = 2650
   mat.restitution = 1.0;  // no normal dashpot: F_n = k_n delta exactly
   mat.friction = 0.5;
   mat.rolling_friction = mu_r;
@@ -91,44 +91,44 @@ double torque_z(const World& world) {
 }  // namespace
 
 TEST_CASE("epsd2: the rolling torque grows as k_r theta, k_r = k_t R*^2, holds at mu_r R* F_n and unloads with k_r") {
- // mu_r = 0.1 (the study's), and the extreme 1 (a cap of R* F_n, reached 10x later).
- for (const double mu_r : {k_mu_r, 1.0}) {
-  CAPTURE(mu_r);
-  const double w = 1.0, dt = 1e-7;  // theta grows by 2 w dt = 2e-7 rad per step
-  const Model model = rolling_model(RollingModel::epsd2, dt, 0.0, mu_r);
-  Setup s = held_pair(model, w);
-  const double k_r = s.k_t * s.r_star * s.r_star;
-  const double cap = mu_r * s.r_star * s.f_n;
-  const int scale = static_cast<int>(std::lround(mu_r / k_mu_r));  // steps to the cap scale with mu_r
-  // Cap reached at theta = mu_r F_n / (k_t R*) = mu_r (E* / 6 G*) delta / R* = 1.6e-4 rad (mu_r
-  // 0.1): 810 steps; 8100 at mu_r = 1.
-  World world(model, s.state, contact_systems(), ExecutorConfig{Backend::tbb, 2});
-  CHECK(world.state().contacts.has_rolling);
-  CHECK(torque_z(world) == 0.0);  // setup does not advance the history
-  const int n1 = 300;
-  world.step(n1);
-  // Tolerance: theta is a sum of n equal increments (n roundings of 2^-53) and k_r a few operations.
-  CHECK(torque_z(world) == doctest::Approx(-k_r * 2.0 * w * n1 * dt).epsilon(4.0 * n1 * k_eps));
-  CHECK(world.state().contacts.rolling[0].z() == doctest::Approx(k_r * 2.0 * w * n1 * dt).epsilon(4.0 * n1 * k_eps));
-  // The normal force is untouched by rolling.
-  CHECK(world.state().contacts.forces.force[0].x() == doctest::Approx(-s.f_n).epsilon(1e-13));
-  world.step(700 * scale + 300 * (scale - 1));  // theta = 2e-4 rad (2e-3 at mu_r = 1): past the cap
-  CHECK(torque_z(world) == doctest::Approx(-cap).epsilon(1e-13));
-  world.step(500);
-  CHECK(torque_z(world) == doctest::Approx(-cap).epsilon(1e-13));  // it holds
-  // Reverse the spins: the moment was reset to the cap, so it unloads at once with slope k_r.
-  world.state().particles.angular_velocity[0] = Vec3(0, 0, -w);
-  world.state().particles.angular_velocity[1] = Vec3(0, 0, w);
-  const int n2 = 200;
-  world.step(n2);
-  CHECK(torque_z(world) == doctest::Approx(-(cap - k_r * 2.0 * w * n2 * dt)).epsilon(4.0 * n2 * k_eps));
-  // Twisting (relative spin about n) is removed from w_r: adding opposite x spins changes nothing.
-  const double before = torque_z(world);
-  world.state().particles.angular_velocity[0].x() = 3.0;
-  world.state().particles.angular_velocity[1].x() = -3.0;
-  world.step(1);
-  CHECK(torque_z(world) == doctest::Approx(before + k_r * 2.0 * w * dt).epsilon(4.0 * (n2 + 1) * k_eps));
- }
+  // mu_r = 0.1 (the study's), and the extreme 1 (a cap of R* F_n, reached 10x later).
+  for (const double mu_r : {k_mu_r, 1.0}) {
+    CAPTURE(mu_r);
+    const double w = 1.0, dt = 1e-7;  // theta grows by 2 w dt = 2e-7 rad per step
+    const Model model = rolling_model(RollingModel::epsd2, dt, 0.0, mu_r);
+    Setup s = held_pair(model, w);
+    const double k_r = s.k_t * s.r_star * s.r_star;
+    const double cap = mu_r * s.r_star * s.f_n;
+    const int scale = static_cast<int>(std::lround(mu_r / k_mu_r));  // steps to the cap scale with mu_r
+    // Cap reached at theta = mu_r F_n / (k_t R*) = mu_r (E* / 6 G*) delta / R* = 1.6e-4 rad (mu_r
+    // 0.1): 810 steps; 8100 at mu_r = 1.
+    World world(model, s.state, contact_systems(), ExecutorConfig{Backend::tbb, 2});
+    CHECK(world.state().contacts.has_rolling);
+    CHECK(torque_z(world) == 0.0);  // setup does not advance the history
+    const int n1 = 300;
+    world.step(n1);
+    // Tolerance: theta is a sum of n equal increments (n roundings of 2^-53) and k_r a few operations.
+    CHECK(torque_z(world) == doctest::Approx(-k_r * 2.0 * w * n1 * dt).epsilon(4.0 * n1 * k_eps));
+    CHECK(world.state().contacts.rolling[0].z() == doctest::Approx(k_r * 2.0 * w * n1 * dt).epsilon(4.0 * n1 * k_eps));
+    // The normal force is untouched by rolling.
+    CHECK(world.state().contacts.forces.force[0].x() == doctest::Approx(-s.f_n).epsilon(1e-13));
+    world.step(700 * scale + 300 * (scale - 1));  // theta = 2e-4 rad (2e-3 at mu_r = 1): past the cap
+    CHECK(torque_z(world) == doctest::Approx(-cap).epsilon(1e-13));
+    world.step(500);
+    CHECK(torque_z(world) == doctest::Approx(-cap).epsilon(1e-13));  // it holds
+    // Reverse the spins: the moment was reset to the cap, so it unloads at once with slope k_r.
+    world.state().particles.angular_velocity[0] = Vec3(0, 0, -w);
+    world.state().particles.angular_velocity[1] = Vec3(0, 0, w);
+    const int n2 = 200;
+    world.step(n2);
+    CHECK(torque_z(world) == doctest::Approx(-(cap - k_r * 2.0 * w * n2 * dt)).epsilon(4.0 * n2 * k_eps));
+    // Twisting (relative spin about n) is removed from w_r: adding opposite x spins changes nothing.
+    const double before = torque_z(world);
+    world.state().particles.angular_velocity[0].x() = 3.0;
+    world.state().particles.angular_velocity[1].x() = -3.0;
+    world.step(1);
+    CHECK(torque_z(world) == doctest::Approx(before + k_r * 2.0 * w * dt).epsilon(4.0 * (n2 + 1) * k_eps));
+  }
 }
 
 TEST_CASE("epsd2 with mu_r = 0: the cap is zero, so no rolling torque ever, only the history is kept") {
@@ -141,7 +141,8 @@ TEST_CASE("epsd2 with mu_r = 0: the cap is zero, so no rolling torque ever, only
   }
 }
 
-TEST_CASE("epsd: spring k_r = 2.25 k_n mu_r^2 R*^2 with the same cap, and a dashpot eta_r 2 sqrt(I_r k_r) only below it") {
+TEST_CASE(
+    "epsd: spring k_r = 2.25 k_n mu_r^2 R*^2 with the same cap, and a dashpot eta_r 2 sqrt(I_r k_r) only below it") {
   // Cap at theta = mu_r R* F_n / k_r = delta / (2.25 mu_r R*) = 8.9e-3 rad; 2 w dt = 2e-5 rad/step.
   const double w = 10.0, dt = 1e-6;
   for (double eta_r : {0.0, 0.3}) {
@@ -159,7 +160,7 @@ TEST_CASE("epsd: spring k_r = 2.25 k_n mu_r^2 R*^2 with the same cap, and a dash
     const double expected = k_r * 2.0 * w * n1 * dt + c_r * 2.0 * w;
     CHECK(torque_z(world) == doctest::Approx(-expected).epsilon(4.0 * n1 * k_eps));
     if (eta_r > 0.0) CHECK(c_r * 2.0 * w > 0.01 * expected);  // the dashpot part is visible
-    world.step(400);  // theta = 1.2e-2 rad: on the cap, no dashpot
+    world.step(400);                                          // theta = 1.2e-2 rad: on the cap, no dashpot
     CHECK(torque_z(world) == doctest::Approx(-cap).epsilon(1e-13));
   }
 }

@@ -151,7 +151,8 @@ TEST_CASE("servo closed loop: isotropic compression reaches p0 within 1 % on eve
     m = run_until(world, 1000);
     for (int a = 0; a < 3; ++a) worst = std::max(worst, std::abs(m.stress(a, a) - 1e6) / 1e6);
   }
-  MESSAGE("isotropic: worst axis error over the last 5000 steps ", worst, ", e = ", m.void_ratio, ", Z = ", m.z, ", Z_mech = ", m.z_mech);
+  MESSAGE("isotropic: worst axis error over the last 5000 steps ", worst, ", e = ", m.void_ratio, ", Z = ", m.z,
+          ", Z_mech = ", m.z_mech);
   CHECK(worst < 0.01);  // the issue's criterion
   // A jammed sample, not a gas held at zero stress: a frictional packing is at least isostatic
   // (Z_mech >= 4, the limit of infinite friction) once rattlers are removed.
@@ -163,18 +164,18 @@ namespace {
 // Compressed once, shared by the path tests.
 const Sample& compressed_sample(double p0) {
   static const Sample sample = [&] {
-  Sample s = small_sample();
-  s.model.servo.enabled = true;
-  s.model.servo.path = StressPath::isotropic;
-  s.model.servo.control = {AxisControl::stress, AxisControl::stress, AxisControl::stress};
-  s.model.servo.p = p0;
-  s.model.servo.max_rate = 20.0;
-  s.model.servo.gain = 200.0;
-  World world(s.model, std::move(s.state), systems_for(s.model), ExecutorConfig{Backend::tbb, 2});
-  world.step(40000);
-  s.state = world.state();
-  s.state.cell.length0 = s.state.cell.length;
-  return s;
+    Sample s = small_sample();
+    s.model.servo.enabled = true;
+    s.model.servo.path = StressPath::isotropic;
+    s.model.servo.control = {AxisControl::stress, AxisControl::stress, AxisControl::stress};
+    s.model.servo.p = p0;
+    s.model.servo.max_rate = 20.0;
+    s.model.servo.gain = 200.0;
+    World world(s.model, std::move(s.state), systems_for(s.model), ExecutorConfig{Backend::tbb, 2});
+    world.step(40000);
+    s.state = world.state();
+    s.state.cell.length0 = s.state.cell.length;
+    return s;
   }();
   return sample;
 }
@@ -231,8 +232,8 @@ TEST_CASE("servo closed loop: constant p and constant b hold along the path") {
   for (double b : {0.0, 0.5, 1.0}) {
     const Tracking t = shear(base, StressPath::constant_p_b, b, p0, 0.03);
     MESSAGE("constant p, b = ", b, ": worst |dp|/p ", t.p, ", worst |db| ", t.b, " up to eps1 = ", t.eps1);
-    CHECK(t.p < 0.02);   // the issue's criteria: p within 2 %,
-    CHECK(t.b < 0.02);   // b within 0.02, after the first 1 % of axial strain
+    CHECK(t.p < 0.02);  // the issue's criteria: p within 2 %,
+    CHECK(t.b < 0.02);  // b within 0.02, after the first 1 % of axial strain
   }
 }
 
