@@ -6,7 +6,7 @@
 // position, velocity and spin are read by every core whose contact chunks reach it, so when a
 // pass writes them the line must first be taken away from the other core (an invalidation
 // round trip). A plain prefetch brings the line shared and leaves that round trip to the store
-// (no gain measured with it: the integrator 0.315 against 0.316 s); PREFETCHW starts it early, so
+// (no gain measured with it); PREFETCHW starts it early, so
 // it overlaps the work on the particles before. On one thread no other core holds the line and
 // the prefetch costs almost nothing.
 // PREFETCHW is reported by CPUID from Intel Broadwell and AMD K8 on, and outside any -march level:

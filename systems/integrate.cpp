@@ -5,10 +5,9 @@
 namespace sandcell {
 
 namespace {
-// Particles ahead at which two_kicks_drift asks for the lines it will write (engine/prefetch.hpp).
-// dense-20k, 2 threads, `dem-bench --scaling --steps 1000 --rounds 3 --threads 2` (integrate_initial
-// of the 2-thread world per 3000 steps, 3-5 runs each): none 0.231-0.311 s, 4: 0.206-0.236,
-// 8: 0.165-0.211, 16: 0.190-0.208; the 1-thread world's 0.30-0.34 s with every distance.
+// Particles ahead at which two_kicks_drift asks for the lines it will write (engine/prefetch.hpp):
+// 8 was the fastest of none, 4, 8 and 16 on 2 threads, and the distance does not matter on 1
+// (`dem-bench --scaling`, integrate_initial's timer; docs/performance.md).
 constexpr std::size_t k_write_ahead = 8;
 
 // Half kick of linear and angular velocity over [b, e).

@@ -1,13 +1,14 @@
 #pragma once
 // Periodic servo (docs/physics.md section 6, Huang et al. 2014 style): per-axis strain rates of the cell from the
-// stress the homogenizer measured in the same step.
-//   stress-controlled axis k: eps_dot_k = clamp(g (sigma*_k - sigma_k)/|sigma*_k|, -max, +max)
-//   strain-controlled axis k: eps_dot_k = the set rate
+// stress the homogenizer measured in the same step, by a PI law.
+//   stress-controlled axis k: eps_dot_k = clamp(g (err_k + I_k / T_i), -max, +max),
+//     err_k = (sigma*_k - sigma_k)/|sigma*_k|, I_k its time integral (Cell::servo_integral, checkpointed,
+//     advanced only while the output is inside the cap); T_i = 0 gives the P law g err_k
+//   strain-controlled axis k: eps_dot_k = the set rate (ramped from 0 over ramp_time, or following the
+//     measured p at a set inertial number)
 // (soil convention, compression positive; the cell's D_kk = -eps_dot_k). The targets sigma*_k are
-// recomputed every servo step from the measured sigma1 = S_xx by the path's formulas.
-// The servo keeps no memory between steps (a proportional law), so nothing of it needs resetting
-// between stages beyond the cell rates each stage starts from, and nothing of it is checkpointed
-// beyond those rates.
+// recomputed every servo step from the measured sigma1 = S_xx by the path's formulas. The servo's
+// only memory is the integral, which a checkpoint carries with the cell.
 // Reads the `stress` scratch component; writes the cell (rates only). Acts on servo steps only.
 #include "engine/system.hpp"
 

@@ -2,8 +2,7 @@
 // spatial_sort: every `contact.sort_interval` steps, reorders the particle arrays along a Morton
 // (Z-order) curve of their positions, so that particles close in space are close in memory and
 // the contact pass reads its particle data from cache. On dense-20k (packing in insertion order)
-// this raised throughput by 22 % (dem-bench, 300 steps, 1 thread: 3.92 -> 4.80 M particle-steps/s
-// before the contact pass was blocked).
+// this raised throughput by a fifth when it was introduced (docs/performance.md).
 //
 // Reads and writes every particle component (a permutation of all of them) and the pair list
 // (indices i, j remapped; the list is marked for a rebuild, which the broadphase does in the same

@@ -90,7 +90,7 @@ def main():
             sd = float(np.std([s[key] for s in seeds], ddof=1)) if len(seeds) >= 2 else float("nan")
             cells.append(f"{fmt % err} ({fmt % sd}, {len(seeds)} seeds)")
         lines.append(f"| {cond} | " + " | ".join(cells) + f" | {paper['steps'] / fast['steps']:.1f} | {paper['wall'] / fast['wall']:.1f} |")
-    # The README's table: per condition and measure, the paper run, the fast run on its sample,
+    # The table of docs/reproducing-the-study.md: per condition and measure, the paper run, the fast run on its sample,
     # the error, and the fast protocol's seed-to-seed standard deviation.
     lines += ["", "| test | measure | paper protocol | fast, same sample | error | seed scatter (std, fast) |",
               "|---|---|---|---|---|---|"]

@@ -1,5 +1,5 @@
 // dem-bench: throughput and physics check on fixed scenes, with the settings the established codes
-// ran (shared/bench/README.md of the project's benchmark notes, copied into scenes/).
+// ran (apps/dem-bench/scenes/: the scenes and the settings, docs/performance.md: the figures).
 //
 //   dem-bench [--scene FILE] [--steps N] [--threads T] [--deform RATE] [--rolling MODEL]
 //             [--tangential MODEL] [--compat] [--sort STEPS] [--serial] [--json]

@@ -27,7 +27,7 @@ struct SampleConfig {
 struct PrepareConfig {
   double friction = 0.0;                // -, Coulomb coefficient during preparation (restored for shearing)
   double rolling_friction = 0.0;        // -, rolling coefficient during preparation
-  double gain = 0.0;                    // 1/s, servo gain (0: derived, see README)
+  double gain = 0.0;                    // 1/s, servo gain (0: derived, apps/triaxial/README.md)
   double max_rate = 5.0;                // 1/s, largest compression rate (the shrink of the loose cloud)
   double tolerance = 0.01;              // -, |sigma_k - p0| / p0 on every axis
   double unbalanced = 0.01;             // -, unbalanced force ratio
@@ -44,8 +44,8 @@ struct ShearConfig {
   double inertial_number = 0.0;      // -, instead of strain_rate: the axial rate follows the measured p so that
                                      // eps_dot_1 d50 sqrt(rho / p) = inertial_number (0: not given)
   double ramp_strain = 0.0;          // -, axial strain over which the rate rises linearly from 0 (0: none)
-  double gain = 0.0;                 // 1/s, lateral servo gain (0: derived, see README)
-  double integral_time = 0.0;        // s, integral time of the lateral servo (0: derived, see README)
+  double gain = 0.0;                 // 1/s, lateral servo gain (0: derived, apps/triaxial/README.md)
+  double integral_time = 0.0;        // s, integral time of the lateral servo (0: derived, apps/triaxial/README.md)
   double max_rate = 0.0;             // 1/s, cap on lateral rates (0: 10 x strain_rate)
   int servo_interval = 1;            // steps between servo updates
   double max_axial_strain = 0.2;     // -, stop at this axial (log) strain

@@ -9,7 +9,7 @@
 //
 // Why an evaluator and not a pass of its own: a separate rolling pass over the pair list re-read
 // the normal, the normal force and the stiffness the contact law had just computed (written to and
-// read back from memory per pair) and cost 17 % of a step on the dense-20k benchmark; evaluated in
+// read back from memory per pair) and cost a sixth of a step on the dense-20k benchmark (docs/performance.md); evaluated in
 // the contact pass it reuses them from registers. With RollingModel::none the contact pass is
 // instantiated without it and the rolling history is never allocated; cdt keeps no history either,
 // so it allocates none.

@@ -148,7 +148,7 @@ TEST_CASE("triaxial: each class of bad input exits 2 naming the key, and clobber
       {"missing packing file", with("sample", "file = \"/nonexistent/packing.txt\""), "sample.file"},
       {"ramp longer than the test", with("shear", "ramp_strain = 0.05"),
        "shear.ramp_strain = 0.05: must be below shear.max_axial_strain = 0.03"},
-      // Each of the following hung, ran forever or ran meaninglessly before (issue 32).
+      // Each of the following hung, ran forever or ran meaninglessly before these checks.
       {"a gradation over 9 decades", with("sample", "distribution = \"gradation\"\ngradation = [[1e-9, 0], [1, 100]]"),
        "spans too wide a range to sample"},
       {"a gradation the uniform distribution would ignore", with("sample", "gradation = [[0.005, 0], [0.004, 100]]"),
@@ -382,7 +382,7 @@ TEST_CASE("triaxial: shear.inertial_number holds eps_dot_1 d50 sqrt(rho/p) at it
   // Constant p and constant sigma3 (where p grows by ~20 % over 3 % strain, so a fixed axial rate
   // would let I drift by ~10 %), with the rate ramped over 0.5 % strain. The servo sets the axial
   // rate from the stress it measured in the step before; p moves by far less than 1 % per step, so
-  // the issue's 10 % bound is loose against a law that holds. Also the series' axial rate must be
+  // a 10 % bound is loose against a law that holds. Also the series' axial rate must be
   // I sqrt(p/rho) / d50 with the d50 of the sample: the same law, read independently.
   const fs::path dir = fresh_dir("inertial");
   std::string config = k_small;
@@ -648,7 +648,7 @@ TEST_CASE("triaxial: a campaign runs tests at once from one prepared sample, eac
   CHECK(first_difference(together.contacts, alone.contacts) == "");
   // b = 1 is extension: the servo holds S_yy = S_xx. Checked on the cell axes it controls (the
   // series' b comes from principal values, which in a 300-sphere sample the shear stresses of the
-  // fabric split by ~0.15 when s1 = s2); 0.02 is the issue's tolerance on b.
+  // fabric split by ~0.15 when s1 = s2); 0.02 is the tolerance on b the constant-b paths are held to (tests/systems/test_servo.cpp).
   const std::vector<double> st = dataset(dir / "c" / "p-b1.00-p0_100kPa.h5", "/series/stress");  // (rows, 6)
   const double* last = st.data() + st.size() - 6;
   CHECK((last[1] - last[2]) / (last[0] - last[2]) == doctest::Approx(1.0).epsilon(0.02));

@@ -1,5 +1,5 @@
 #pragma once
-// Scene builders shared by tests. Every scene is made here from a seed; no test reads ../shared.
+// Scene builders shared by tests. Every scene is made here from a seed; no test reads a file outside the repository.
 #include "engine/state.hpp"
 
 #include <cstdint>

@@ -1,4 +1,4 @@
-// The engine at the extremes of its parameters (issue 6): each case either gives the right physics
+// The engine at the extremes of its parameters: each case either gives the right physics
 // (checked against an analytic result) or stops with a SimulationError that names the step, the
 // particle and the quantity, never with silent NaNs. The time step around the exact stability limit
 // of velocity Verlet, a sphere crossing more than the skin in one step, a 10:1 radius ratio, N = 1

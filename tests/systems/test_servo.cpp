@@ -153,7 +153,7 @@ TEST_CASE("servo closed loop: isotropic compression reaches p0 within 1 % on eve
   }
   MESSAGE("isotropic: worst axis error over the last 5000 steps ", worst, ", e = ", m.void_ratio, ", Z = ", m.z,
           ", Z_mech = ", m.z_mech);
-  CHECK(worst < 0.01);  // the issue's criterion
+  CHECK(worst < 0.01);  // the servo's acceptance criterion: every axis within 1 % of p0
   // A jammed sample, not a gas held at zero stress: a frictional packing is at least isostatic
   // (Z_mech >= 4, the limit of infinite friction) once rattlers are removed.
   CHECK(m.z_mech >= 4.0);
@@ -232,7 +232,7 @@ TEST_CASE("servo closed loop: constant p and constant b hold along the path") {
   for (double b : {0.0, 0.5, 1.0}) {
     const Tracking t = shear(base, StressPath::constant_p_b, b, p0, 0.03);
     MESSAGE("constant p, b = ", b, ": worst |dp|/p ", t.p, ", worst |db| ", t.b, " up to eps1 = ", t.eps1);
-    CHECK(t.p < 0.02);  // the issue's criteria: p within 2 %,
+    CHECK(t.p < 0.02);  // the path's acceptance criteria: p within 2 %,
     CHECK(t.b < 0.02);  // b within 0.02, after the first 1 % of axial strain
   }
 }
