@@ -157,7 +157,7 @@ def replica(p, dt, nsteps, gap):
     """LIGGGHTS' algorithm step by step in Python (two spheres, the same operations in the same
     order): the check that the formulas above are what LIGGGHTS does."""
     c = constants(p)
-    R, m, I = p["R"], c["m"], c["inertia"]
+    R, m = p["R"], c["m"]
     kn, kt, gn, gt, mu = c["kn"], c["kt"], c["gn"], c["gt"], p["mu"]
     x0 = R + 0.5 * gap
     x = np.array([[-x0, 0.0, 0.0], [x0, 0.0, 0.0]])
@@ -404,7 +404,8 @@ def main():
         if r["vt"] != 0.0:
             print(f"{r['scene']:21s} {r['code']:9s} {r['steps_per_contact']:6.0f}  e_n {r['e_n']:.6f}"
                   f"  v1z {r['v1z']:.6f}  w1y {r['w1y']:8.4f}"
-                  + (f"  (sliding closed form: v1z {r['v1z_slide_analytic']:.6f}, {digits(r['v1z'], r['v1z_slide_analytic']):.1f} dig;"
+                  + (f"  (sliding closed form: v1z {r['v1z_slide_analytic']:.6f}, "
+                     f"{digits(r['v1z'], r['v1z_slide_analytic']):.1f} dig;"
                      f" w1y {r['w1y_slide_analytic']:.4f}, {digits(r['w1y'], r['w1y_slide_analytic']):.1f} dig)"
                      if r["slides_analytic"] else "  (sticks: no closed form)")
                   + f"  steps at the cap {100 * r['slip_fraction']:.1f} %"

@@ -74,8 +74,9 @@ PRESETS = {
                  N=[500, 1000, 2000, 5000, 20000], seeds=[1, 2, 3], snapshots=20),
     "size-smoke": dict(kind="size", strain=0.03, dt=[0.2], I=[1e-2], E=[1.0], e=[0.5], N=[120, 160, 200],
                        seeds=[1, 2], largest_seeds=1),
-    # The inertial-number axis alone, down to I = 1e-5 (quasi-static: docs/studies.md), at the default's N and dt (the dt
-    # axis of `quick` moves the peak by 1e-3 at most): ~1 h on 2 cores, 40 min of it the reference.
+    # The inertial-number axis alone, down to I = 1e-5 (quasi-static: docs/studies.md), at the
+    # default's N and dt (the dt axis of `quick` moves the peak by 1e-3 at most): ~1 h on 2 cores,
+    # 40 min of it the reference.
     # No seeds (one more I = 1e-5 run each): pass --tolerance from the size study's scatter at N = 2000.
     "inertia": dict(count=2000, strain=0.1, dt=[0.2], I=[1e-5, 3e-5, 1e-4, 3e-4, 1e-3, 3e-3, 1e-2], E=[1.0],
                     e=[0.5], N=[2000], seeds=[]),
