@@ -4,6 +4,7 @@
 #include "components/types.hpp"
 
 #include <array>
+#include <functional>
 #include <map>
 #include <string>
 
@@ -57,6 +58,7 @@ struct PairMaterial {
 enum class AxisControl {
   strain,  // at the set strain rate
   stress,  // by the servo, toward the path's target stress
+  volume,  // custom paths only (PathTargets): the common rate of such axes that keeps the volume constant
 };
 
 /// The stress path whose targets the servo recomputes from the measured sigma1 (docs/physics.md section 6).
@@ -65,7 +67,37 @@ enum class StressPath {
   isotropic,          // all three axes to p
   constant_p_b,       // sigma3* = (3p - (1+b) s1)/(2-b), sigma2* = (3p(1-b) + (2b-1) s1)/(2-b)
   constant_sigma3_b,  // sigma3* = sigma3, sigma2* = b s1 + (1-b) sigma3
+  custom,             // ServoSettings::custom decides each axis's control and target at every servo update
 };
+
+/// What a custom path sees at each servo update (docs/physics.md section 6.1): the stress the
+/// homogenizer measured in this step and the cell after this step's drift. Compression positive.
+struct PathInput {
+  std::uint64_t step = 0;           // clock step at which the stress was measured
+  double time = 0.0;                // s, clock time at that step
+  double dt = 0.0;                  // s, time step
+  int interval = 1;                 // steps until the next servo update (the returned rates hold that long)
+  Mat3 stress = Mat3::Zero();       // Pa, measured (symmetrized, compression positive)
+  Vec3 length = Vec3::Ones();       // m, cell lengths now
+  Vec3 length0 = Vec3::Ones();      // m, reference lengths (strains and eps_v count from them)
+  Vec3 strain = Vec3::Zero();       // -, logarithmic, -ln(L/L0)
+  Vec3 strain_rate = Vec3::Zero();  // 1/s, the rates applied until now (-D_kk)
+};
+
+/// What a custom path returns, per axis: `strain`, at `value` 1/s (compression positive); `stress`,
+/// toward `value` Pa by the PI servo (gain, integral_time, max_rate, as the other paths); `volume`
+/// (value unused), one common rate of the `volume` axes that brings the cell's volume to the
+/// product of length0 by the next servo update, given the other axes' rates: constant volume,
+/// eps_v = 0, exactly up to rounding (docs/physics.md section 6.1).
+struct PathTargets {
+  std::array<AxisControl, 3> control{AxisControl::strain, AxisControl::strain, AxisControl::strain};
+  Vec3 value = Vec3::Zero();
+};
+
+/// A user-defined path (StressPath::custom). Called by the servo on servo updates only, from the
+/// thread that runs the servo system; it may keep its own state (a cyclic path's direction), which
+/// checkpoints do not hold. An exception it throws stops World::step with that exception.
+using PathFunction = std::function<PathTargets(const PathInput&)>;
 
 /// The periodic servo (docs/physics.md section 6). Soil convention: stresses and strain rates compression positive.
 /// Axis k of the cell is principal direction k: sigma1 = S_xx, sigma2 = S_yy, sigma3 = S_zz.
@@ -90,6 +122,7 @@ struct ServoSettings {
   double max_rate = 0.0;            // 1/s, cap on |eps_dot| of a stress-controlled axis
   int interval = 1;                 // steps between stress measurements and servo updates
   bool kinetic_stress = false;      // include the kinetic part sum m v~ (x) v~ / V in the measured stress
+  PathFunction custom;              // the path of StressPath::custom (control, strain_rate, target unused)
 };
 
 struct Model {

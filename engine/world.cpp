@@ -28,6 +28,18 @@ void validate(const ServoSettings& servo) {
     if (!(servo.density > 0.0) || !std::isfinite(servo.density))
       fail("density", servo.density, "must be > 0 kg/m^3 with inertial_number > 0");
   }
+  if (servo.path == StressPath::custom) {
+    if (!servo.custom)
+      throw std::invalid_argument(
+          "servo.custom: empty; the custom path needs a function (PathInput -> PathTargets), "
+          "e.g. undrained_path(rate) or a CyclicPath");
+    return;  // the function decides each axis's control and target at every servo update
+  }
+  for (int k = 0; k < 3; ++k)
+    if (servo.control[k] == AxisControl::volume)
+      throw std::invalid_argument(
+          "servo.control[" + std::to_string(k) +
+          "] = volume: only a custom path's answer may hold the volume; allowed here: strain, stress");
   const bool any_stress = servo.control[0] == AxisControl::stress || servo.control[1] == AxisControl::stress ||
                           servo.control[2] == AxisControl::stress;
   if (!any_stress) return;
@@ -39,6 +51,7 @@ void validate(const ServoSettings& servo) {
     case StressPath::constant_sigma3_b:
       if (!(servo.sigma3 > 0.0)) fail("sigma3", servo.sigma3, "must be > 0 Pa (compression positive)");
       break;
+    case StressPath::custom: break;
     case StressPath::fixed:
       for (int k = 0; k < 3; ++k)
         if (servo.control[k] == AxisControl::stress && !(servo.target[k] > 0.0))

@@ -4,6 +4,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <stdexcept>
+#include <string>
 
 namespace sandcell {
 
@@ -20,6 +22,7 @@ Vec3 path_targets(const ServoSettings& servo, double s1) {
       const double s3 = servo.sigma3, b = servo.b;
       return Vec3(s1, b * s1 + (1.0 - b) * s3, s3);
     }
+    case StressPath::custom: break;  // the targets come from servo.custom (custom_strain_rates)
   }
   return servo.target;
 }
@@ -33,9 +36,26 @@ double stress_scale(const ServoSettings& servo) {
     case StressPath::isotropic:
     case StressPath::constant_p_b: return std::abs(servo.p);
     case StressPath::constant_sigma3_b: return std::abs(servo.sigma3);
-    case StressPath::fixed: break;
+    case StressPath::fixed:
+    case StressPath::custom: break;
   }
   return servo.target.cwiseAbs().maxCoeff();
+}
+}  // namespace
+
+namespace {
+// The PI law of one stress-controlled axis on its normalized error; `integral` null: a P law.
+double pi_rate(const ServoSettings& servo, double error, double* integral, double interval) {
+  if (integral == nullptr || !(servo.integral_time > 0.0))
+    return std::clamp(servo.gain * error, -servo.max_rate, servo.max_rate);
+  // PI: the integral removes the lag a P law keeps while the target moves (error ~ rate / g).
+  // Anti-windup: the integral advances only while the output is inside the cap, or when the
+  // error would bring it back inside.
+  double& i = *integral;
+  const double trial_i = i + error * interval;
+  const double trial = servo.gain * (error + trial_i / servo.integral_time);
+  if (std::abs(trial) <= servo.max_rate || trial * error < 0.0) i = trial_i;
+  return std::clamp(servo.gain * (error + i / servo.integral_time), -servo.max_rate, servo.max_rate);
 }
 }  // namespace
 
@@ -56,26 +76,142 @@ Vec3 servo_strain_rates(const ServoSettings& servo, const Vec3& sigma, Vec3* int
       continue;
     }
     const double error = (target[k] - sigma[k]) / std::max(std::abs(target[k]), floor);
-    if (integral == nullptr || !(servo.integral_time > 0.0)) {
-      rate[k] = std::clamp(servo.gain * error, -servo.max_rate, servo.max_rate);
-      continue;
-    }
-    // PI: the integral removes the lag a P law keeps while the target moves (error ~ rate / g).
-    // Anti-windup: the integral advances only while the output is inside the cap, or when the
-    // error would bring it back inside.
-    double& i = (*integral)[k];
-    const double trial_i = i + error * interval;
-    const double trial = servo.gain * (error + trial_i / servo.integral_time);
-    if (std::abs(trial) <= servo.max_rate || trial * error < 0.0) i = trial_i;
-    rate[k] = std::clamp(servo.gain * (error + i / servo.integral_time), -servo.max_rate, servo.max_rate);
+    rate[k] = pi_rate(servo, error, integral != nullptr ? &(*integral)[k] : nullptr, interval);
   }
   return rate;
+}
+
+Vec3 custom_strain_rates(const ServoSettings& servo, const PathTargets& targets, const PathInput& input,
+                         Vec3* integral) {
+  const Vec3 sigma = input.stress.diagonal();
+  double scale = std::abs(sigma.mean());
+  int volume_axes = 0;
+  for (int k = 0; k < 3; ++k) {
+    const char* kind = targets.control[k] == AxisControl::strain   ? "strain"
+                       : targets.control[k] == AxisControl::stress ? "stress"
+                                                                   : nullptr;
+    if (kind == nullptr) {
+      ++volume_axes;
+      continue;
+    }
+    if (!std::isfinite(targets.value[k]))
+      throw std::invalid_argument("servo.custom returned value[" + std::to_string(k) +
+                                  "] = " + std::to_string(targets.value[k]) + " on a " + kind +
+                                  "-controlled axis: must be finite");
+    if (targets.control[k] == AxisControl::stress) scale = std::max(scale, std::abs(targets.value[k]));
+  }
+  const double floor = 1e-3 * scale;
+  const double interval = input.dt * input.interval;
+  Vec3 rate = Vec3::Zero();
+  for (int k = 0; k < 3; ++k) {
+    if (targets.control[k] == AxisControl::strain) rate[k] = targets.value[k];
+    if (targets.control[k] != AxisControl::stress) continue;
+    const double error = (targets.value[k] - sigma[k]) / std::max(std::abs(targets.value[k]), floor);
+    rate[k] = pi_rate(servo, error, integral != nullptr ? &(*integral)[k] : nullptr, interval);
+  }
+  if (volume_axes == 0) return rate;
+  // L <- L (1 + D dt) each step (integrate_initial), D = -rate: after n steps the volume is
+  // V prod_k (1 + D_k dt)^n. The volume axes share the D that makes it V0 = prod L0:
+  // (1 + D dt)^(m n) = V0 / (V prod_others (1 + D_k dt)^n).
+  const double n = input.interval;
+  double others = 1.0;  // prod over the other axes of (1 + D_k dt)
+  for (int k = 0; k < 3; ++k)
+    if (targets.control[k] != AxisControl::volume) others *= 1.0 - rate[k] * input.dt;
+  const double ratio = input.length0.prod() / input.length.prod();
+  if (!(others > 0.0) || !(ratio > 0.0) || !std::isfinite(ratio))
+    throw std::invalid_argument(
+        "servo.custom: the volume axes cannot hold the volume: the other axes' rates over one step "
+        "give a length factor " +
+        std::to_string(others) + " (must be > 0)");
+  const double factor = std::pow(ratio, 1.0 / (volume_axes * n)) / std::pow(others, 1.0 / volume_axes);
+  const double volume_rate = -(factor - 1.0) / input.dt;
+  for (int k = 0; k < 3; ++k)
+    if (targets.control[k] == AxisControl::volume) rate[k] = volume_rate;
+  return rate;
+}
+
+PathInput path_input(const Model& model, const Mat3& stress, const Cell& cell, const Clock& clock) {
+  PathInput in;
+  in.step = clock.step;
+  in.time = clock.time;
+  in.dt = model.dt;
+  in.interval = model.servo.interval;
+  in.stress = stress;
+  in.length = cell.length;
+  in.length0 = cell.length0;
+  for (int k = 0; k < 3; ++k) in.strain[k] = -std::log(cell.length[k] / cell.length0[k]);
+  in.strain_rate = -cell.rate;
+  return in;
+}
+
+PathFunction undrained_path(double axial_rate) {
+  if (!std::isfinite(axial_rate))
+    throw std::invalid_argument("undrained.axial_rate = " + std::to_string(axial_rate) + ": must be finite (1/s)");
+  return [axial_rate](const PathInput&) {
+    PathTargets t;
+    t.control = {AxisControl::strain, AxisControl::volume, AxisControl::volume};
+    t.value = Vec3(axial_rate, 0.0, 0.0);
+    return t;
+  };
+}
+
+void validate(const CyclicSettings& c) {
+  const auto fail = [](const std::string& key, double value, const std::string& allowed) {
+    throw std::invalid_argument("cyclic." + key + " = " + std::to_string(value) + ": " + allowed);
+  };
+  if (c.axial == AxisControl::volume) throw std::invalid_argument("cyclic.axial = volume: must be strain or stress");
+  if (!std::isfinite(c.lower)) fail("lower", c.lower, "must be finite");
+  if (!(c.upper > c.lower) || !std::isfinite(c.upper)) fail("upper", c.upper, "must be finite and > lower");
+  if (c.axial == AxisControl::strain && (!(c.rate > 0.0) || !std::isfinite(c.rate)))
+    fail("rate", c.rate, "must be a finite value > 0 1/s in strain mode");
+  if (!(c.tolerance >= 0.0 && c.tolerance < 0.5)) fail("tolerance", c.tolerance, "must be in [0, 0.5)");
+  if (!c.undrained && (!(c.sigma3 > 0.0) || !std::isfinite(c.sigma3)))
+    fail("sigma3", c.sigma3, "must be a finite value > 0 Pa when drained");
+  if (c.cycles < 0) fail("cycles", c.cycles, "must be >= 0 (0: no limit)");
+  if (!(c.max_strain >= 0.0) || !std::isfinite(c.max_strain))
+    fail("max_strain", c.max_strain, "must be finite and >= 0 (0: no limit)");
+}
+
+CyclicPath::CyclicPath(const CyclicSettings& settings) : settings_(settings), memory_(std::make_shared<Memory>()) {
+  validate(settings_);
+}
+
+PathTargets CyclicPath::operator()(const PathInput& in) const {
+  const CyclicSettings& c = settings_;
+  Memory& m = *memory_;
+  const double eps1 = in.strain[0];
+  const double lateral = 0.5 * (in.stress(1, 1) + in.stress(2, 2));
+  const double q = in.stress(0, 0) - lateral;
+  // Reversal: the measure reached the bound it was heading for (stress mode: within the tolerance).
+  const double measure = c.axial == AxisControl::strain ? eps1 : q;
+  const double slack = c.axial == AxisControl::strain ? 0.0 : c.tolerance * (c.upper - c.lower);
+  if (!m.finished && (m.up ? measure >= c.upper - slack : measure <= c.lower + slack)) {
+    m.up = !m.up;
+    ++m.reversals;
+    m.reversal_strain.push_back(eps1);
+    m.reversal_step.push_back(in.step);
+  }
+  if ((c.cycles > 0 && m.reversals >= 2 * c.cycles) || (c.max_strain > 0.0 && std::abs(eps1) >= c.max_strain))
+    m.finished = true;
+  PathTargets t;
+  t.control[0] = c.axial;
+  t.value[0] = c.axial == AxisControl::strain ? (m.up ? c.rate : -c.rate) : lateral + (m.up ? c.upper : c.lower);
+  for (int k = 1; k < 3; ++k) {
+    t.control[k] = c.undrained ? AxisControl::volume : AxisControl::stress;
+    t.value[k] = c.undrained ? 0.0 : c.sigma3;
+  }
+  return t;
 }
 
 void Servo::run(const Model& model, State& state, Scratch& scratch, Executor&) {
   if (!servo_due(model.servo, state.clock.step)) return;
   const MeasuredStress& measured = scratch.read<MeasuredStress>();
   Cell& cell = state.write<Component::cell>();
+  if (model.servo.path == StressPath::custom) {
+    const PathInput input = path_input(model, measured.stress, cell, state.clock);
+    cell.rate = -custom_strain_rates(model.servo, model.servo.custom(input), input, &cell.servo_integral);
+    return;
+  }
   const Vec3 rate = servo_strain_rates(model.servo, measured.stress.diagonal(), &cell.servo_integral,
                                        model.dt * model.servo.interval, state.clock.time);
   cell.rate = -rate;  // D_kk is tension positive

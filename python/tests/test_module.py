@@ -1,0 +1,120 @@
+"""The module from the build tree: views without copies, measures, bad input, checkpoints."""
+import os
+
+import h5py
+import numpy as np
+import pytest
+
+import sandcell as sc
+from conftest import base_model
+
+
+def test_imports_from_the_build_tree():
+    # ctest sets PYTHONPATH to <build>/python: the package found must be the one built there.
+    build = os.environ.get("PYTHONPATH", "").split(os.pathsep)[0]
+    assert build and os.path.realpath(sc.__file__).startswith(os.path.realpath(build))
+    assert sc.__version__.count(".") == 2
+
+
+def test_views_see_the_state_after_steps_without_copies():
+    model = base_model()
+    state = sc.State.generate(model, 200, d_min=5e-3, d_max=7.5e-3, seed=5)
+    world = sc.World(model, state, threads=2)
+    x = world.particles["position"]
+    f = world.contacts["force"]
+    # The view's data is the C++ array itself, (n, 3) with the stride of a Vec3, and read-only.
+    assert x.ctypes.data == world._address("position")
+    assert x.shape == (200, 3) and x.strides == (24, 8) and not x.flags.writeable
+    assert f.ctypes.data == world._address("contact_force") or f.size == 0
+    with pytest.raises(ValueError):
+        x[0, 0] = 1.0
+    before = x.copy()
+    world.step(50)  # no sort, no resize of the particle arrays: the pointer stays
+    assert x.ctypes.data == world._address("position")
+    assert world.particles["position"].ctypes.data == x.ctypes.data
+    # The view shows what the engine holds now (a copy of the state taken after the steps).
+    assert np.array_equal(x, world.state().particles["position"])
+    assert before.shape == x.shape
+
+
+def test_views_follow_moving_spheres():
+    model = base_model()
+    state = sc.State.from_arrays(model, [0.02, 0.02, 0.02], [[0.005, 0.01, 0.01], [0.0099, 0.01, 0.01]],
+                                 [2.6e-3, 2.6e-3])  # 4.9 mm apart, overlapping by 0.3 mm: they push apart
+    world = sc.World(model, state, threads=1)
+    x = world.particles["position"]
+    x0 = x[:, 0].copy()
+    world.step(200)
+    assert x[0, 0] < x0[0] and x[1, 0] > x0[1]  # the view saw the repulsion, no re-fetch
+    assert x.ctypes.data == world._address("position")
+    # Newton's third law on the view of the forces: equal and opposite (exact: one pair).
+    f = world.particles["force"]
+    assert np.array_equal(f[0], -f[1])
+
+
+def test_measures_of_a_loose_sample(loose_sample):
+    model, state = loose_sample
+    world = sc.World(model, state, threads=2, initial_forces=False)
+    m = world.measure()
+    # Prepared to p0 within 1 % on each axis (the fixture's criterion), so p and the trace agree.
+    assert abs(m.p - 1e5) / 1e5 < 0.01
+    assert m.p == pytest.approx(np.trace(m.stress) / 3, rel=1e-12)  # identity, rounding only
+    assert m.fabric.trace() == pytest.approx(1.0, rel=1e-12)  # <n (x) n> has trace 1
+    assert m.z == pytest.approx(2 * m.contacts / len(state), rel=1e-15)
+    assert 0.5 < m.e < 1.2
+
+
+@pytest.mark.parametrize("call, key", [
+    (lambda: sc.Model(dt=0.0, materials=[sc.Material()]), "dt"),
+    (lambda: sc.Model(dt=-1e-6, materials=[sc.Material()]), "dt"),
+    (lambda: sc.Model(dt=1e-6, materials=[]), "materials"),
+    (lambda: sc.Material(young=-1.0), "young"),
+    (lambda: sc.State.from_arrays(base_model(), [1, 1, 1], np.zeros((3, 2)), np.ones(3)), "position"),
+    (lambda: sc.State.from_arrays(base_model(), [1, 1, 1], np.zeros((3, 3)), np.ones(4)), "radius"),
+    (lambda: sc.State.from_arrays(base_model(), [1, 1, 1], np.zeros((2, 3)), [1e-3, -1e-3]), "radius[1]"),
+    (lambda: sc.State.from_arrays(base_model(), [1, 1], np.zeros((2, 3)), [1e-3, 1e-3]), "box"),
+    (lambda: setattr(sc.ServoSettings(), "path", "liquefy"), "servo.path"),
+    (lambda: setattr(sc.ServoSettings(), "control", ["strain", "stres", "stress"]), "servo.control[1]"),
+    (lambda: setattr(sc.ServoSettings(), "strain_rate", [1.0, 2.0]), "servo.strain_rate"),
+    (lambda: setattr(sc.ServoSettings(), "custom", 3), "servo.custom"),
+    (lambda: setattr(sc.ContactSettings(), "rolling", "sticky"), "contact.rolling"),
+    (lambda: sc.PathTargets(["strain", "volume"], [0, 0, 0]), "control"),
+    (lambda: sc.undrained_path(float("nan")), "undrained.axial_rate"),
+    (lambda: sc.CyclicPath(sc.CyclicSettings()), "cyclic.upper"),
+])
+def test_bad_input_is_a_value_error_naming_the_argument(call, key):
+    with pytest.raises(ValueError) as e:
+        call()
+    assert str(e.value).startswith(key), str(e.value)
+
+
+def test_servo_settings_are_checked_when_the_world_is_built():
+    model = base_model()
+    model.servo.enabled = True
+    model.servo.gain = 0.0
+    state = sc.State.generate(model, 50, d_min=5e-3, d_max=7.5e-3)
+    with pytest.raises(ValueError, match="servo.gain"):
+        sc.World(model, state)
+    model.servo.gain, model.servo.max_rate, model.servo.path = 1.0, 1.0, "custom"
+    with pytest.raises(ValueError, match="servo.custom"):
+        sc.World(model, state)
+
+
+def test_checkpoint_round_trip_is_bitwise(loose_sample, work_dir):
+    model, state = loose_sample
+    world = sc.World(model, state, threads=2, initial_forces=False)
+    world.step(10)
+    path = os.path.join(work_dir, "round.h5")
+    world.write_checkpoint(path, {"doubles": {"p0": [1e5]}, "strings": {"note": "py"}})
+    back, extra = sc.read_checkpoint(path)
+    assert extra["doubles"]["p0"] == [1e5] and extra["strings"]["note"] == "py"
+    for name, view in world.particles.items():
+        assert np.array_equal(view, back.particles[name]), name
+    assert back.step == world.step_count and back.time == world.time
+    # A world continued from the checkpoint runs bitwise as the one that wrote it.
+    again = sc.World(model, back, threads=1, initial_forces=False)
+    world.step(100)
+    again.step(100)
+    assert np.array_equal(world.particles["position"], again.particles["position"])
+    with h5py.File(path) as f:
+        assert f.attrs["format"] == b"sandcell checkpoint" or f.attrs["format"] == "sandcell checkpoint"
