@@ -1,5 +1,7 @@
 #include "config.hpp"
 
+#include "systems/contact_pass.hpp"
+
 #include <toml++/toml.h>
 
 #include <algorithm>
@@ -319,6 +321,26 @@ void parse_contact(const toml::table& root, const std::string& source, ContactSe
   Section s = section(root, "contact", source);
   k.skin = 0.0;
   k.sort_interval = 1000;
+  if (s.string("normal", k.normal)) {
+    const std::string names = normal_law_names();  // the registry's (systems/laws/normal_laws.hpp)
+    std::string allowed = "allowed:";
+    bool known = false;
+    for (std::size_t a = 0; a < names.size();) {
+      const std::size_t b = std::min(names.find(", ", a), names.size());
+      known = known || names.substr(a, b - a) == k.normal;
+      allowed += " \"" + names.substr(a, b - a) + "\"";
+      a = b + 2;
+    }
+    if (!known) s.fail("normal", "\"" + k.normal + "\"", allowed);
+  }
+  double v_char = 0.0;
+  s.number("characteristic_velocity", v_char, 1e-9, 1e6, "must be in (0, 1e6] m/s");
+  if (k.normal == "hooke" && v_char == 0.0)
+    s.fail("characteristic_velocity", "(none)",
+           "required with normal = \"hooke\" (m/s, LIGGGHTS characteristicVelocity)");
+  if (k.normal != "hooke" && v_char != 0.0)
+    s.fail("characteristic_velocity", num(v_char), "only with normal = \"hooke\"");
+  if (v_char > 0.0) k.parameters["characteristic_velocity"] = v_char;
   s.choice("tangential", k.tangential,
            {{"history", TangentialModel::history}, {"incremental", TangentialModel::incremental}});
   s.choice("rolling", k.rolling,
