@@ -9,7 +9,9 @@
 #include <oneapi/tbb/parallel_for.h>
 #include <oneapi/tbb/partitioner.h>
 
+#include <atomic>
 #include <cstdlib>
+#include <vector>
 #include <string>
 #include <thread>
 
@@ -31,9 +33,34 @@ Executor::Executor(ExecutorConfig config) : backend_(config.backend), partition_
   }
   threads_ = config.threads > 0 ? config.threads : available_cpus();
   impl_ = std::make_unique<Impl>(threads_);
+  if (partition_ == Partition::owner) impl_->pinning = std::make_unique<PinningObserver>(impl_->arena, allowed_cpus());
 }
 
 Executor::~Executor() = default;
+
+std::vector<int> allowed_cpus() {
+  std::vector<int> cpus;
+#ifdef __linux__
+  cpu_set_t set;
+  CPU_ZERO(&set);
+  if (sched_getaffinity(0, sizeof set, &set) == 0)
+    for (int c = 0; c < CPU_SETSIZE; ++c)
+      if (CPU_ISSET(c, &set)) cpus.push_back(c);
+#endif
+  return cpus;
+}
+
+void PinningObserver::on_scheduler_entry(bool worker) {
+#ifdef __linux__
+  if (!worker || cpus_.empty()) return;
+  const int slot = tbb::this_task_arena::current_thread_index();
+  if (slot < 0) return;
+  cpu_set_t set;
+  CPU_ZERO(&set);
+  CPU_SET(cpus_[static_cast<std::size_t>(slot) % cpus_.size()], &set);
+  sched_setaffinity(0, sizeof set, &set);  // best effort: a refusal leaves the thread unpinned
+#endif
+}
 
 int available_cpus() {
   if (const char* slurm = std::getenv("SLURM_CPUS_PER_TASK"); slurm && *slurm) {
@@ -63,6 +90,30 @@ void Executor::parallel_for(std::size_t n, std::size_t grain, FunctionRef<void(s
   const auto run = [&](const tbb::blocked_range<std::size_t>& r) {
     for (std::size_t c = r.begin(); c < r.end(); ++c) body(c * grain, std::min(n, (c + 1) * grain));
   };
+  if (partition_ == Partition::owner) {
+    // One share of chunks per thread; a task runs its own thread's share if no one has, else the
+    // first share left. Every share runs once, whoever runs it: the chunks, and so the results,
+    // are the same.
+    const int t = std::min<int>(threads_, static_cast<int>(chunks));
+    std::vector<std::atomic<bool>> taken(static_cast<std::size_t>(t));
+    const auto share = [&](int k) {
+      const std::size_t c0 = chunks * static_cast<std::size_t>(k) / static_cast<std::size_t>(t);
+      const std::size_t c1 = chunks * static_cast<std::size_t>(k + 1) / static_cast<std::size_t>(t);
+      for (std::size_t c = c0; c < c1; ++c) body(c * grain, std::min(n, (c + 1) * grain));
+    };
+    impl_->arena.execute([&] {
+      tbb::parallel_for(
+          0, t,
+          [&](int) {
+            const int me = tbb::this_task_arena::current_thread_index();
+            if (me >= 0 && me < t && !taken[static_cast<std::size_t>(me)].exchange(true)) return share(me);
+            for (int k = 0; k < t; ++k)
+              if (!taken[static_cast<std::size_t>(k)].exchange(true)) return share(k);
+          },
+          tbb::static_partitioner());
+    });
+    return;
+  }
   impl_->arena.execute([&] {
     if (partition_ == Partition::fixed)
       tbb::parallel_for(tbb::blocked_range<std::size_t>(0, chunks, 1), run, tbb::static_partitioner());

@@ -11,6 +11,7 @@
 #include <array>
 #include <cstddef>
 #include <memory>
+#include <vector>
 
 namespace sandcell {
 
@@ -22,6 +23,10 @@ enum class Partition {
   dynamic,  // work stealing, one chunk at a time: balances uneven chunks and a core slowed by others
   fixed,    // each thread takes the same contiguous share of the chunks every pass (TBB
             // static_partitioner): a thread keeps working on the same particles and pairs
+  owner,    // the chunks cut into one contiguous share per thread, share k run by the arena's thread k
+            // whenever it is there to take it (the others take what is left), and the worker threads
+            // pinned each to one CPU of the process's mask: every pass, a thread and its core keep the
+            // same particles and pairs, so only the boundary between shares moves between caches
 };
 
 struct ExecutorConfig {
@@ -34,6 +39,8 @@ struct ExecutorConfig {
 /// integer, else the CPUs of the process's affinity mask (sched_getaffinity: taskset, cgroups
 /// cpusets, a scheduler's binding), else std::thread::hardware_concurrency(); at least 1.
 int available_cpus();
+/// The CPUs of the process's affinity mask, ascending (empty where it cannot be read).
+std::vector<int> allowed_cpus();
 
 class Executor {
  public:

@@ -6,6 +6,7 @@
     one        dem-bench, 1 thread
     dynamic    dem-bench, T threads, work-stealing partition (the default)
     fixed      dem-bench, T threads, fixed partition (--partition fixed)
+    owner      dem-bench, T threads, owner partition, workers pinned (--partition owner)
     liggghts   LIGGGHTS on T MPI ranks (when installed and --liggghts), same scene
 
 each run timed by itself, with the CPU time other processes used meanwhile (from /proc/stat and
@@ -94,7 +95,8 @@ def main():
             row.update(alu_ratio=p["alu_ratio"], pingpong_ns=p["pingpong_ns"], probe_foreign=foreign)
             for name, extra in (("one", ["--threads", "1"]),
                                 ("dynamic", ["--threads", str(args.threads)]),
-                                ("fixed", ["--threads", str(args.threads), "--partition", "fixed"])):
+                                ("fixed", ["--threads", str(args.threads), "--partition", "fixed"]),
+                                ("owner", ["--threads", str(args.threads), "--partition", "owner"])):
                 out, _, foreign = timed([args.bench, "--steps", str(args.steps), "--json", *compat, *extra])
                 row[name] = json.loads(out)["particle_steps_per_s"]
                 row[name + "_foreign"] = foreign
@@ -118,11 +120,11 @@ def main():
     T = args.threads
     col = lambda k: np.array([row[k] for row in rows], dtype=float)  # noqa: E731
     print(f"\n{len(rows)} rounds, {args.steps} steps, T = {T}; p10 / median / p90")
-    for k in ["one", "dynamic", "fixed"] + (["liggghts"] if args.liggghts else []):
+    for k in ["one", "dynamic", "fixed", "owner"] + (["liggghts"] if args.liggghts else []):
         a = q(col(k) / 1e6)
         print(f"  {k:9s} {a[0]:7.2f} {a[1]:7.2f} {a[2]:7.2f} M particle-steps/s")
     one_median = np.median(col("one"))
-    for k in ["dynamic", "fixed"]:
+    for k in ["dynamic", "fixed", "owner"]:
         a = q(col(k) / col("one"))
         print(f"  {k}/one per round {a[0]:.2f} {a[1]:.2f} {a[2]:.2f};  p10 of {k} / median one "
               f"{np.percentile(col(k), 10) / one_median:.2f}")

@@ -356,8 +356,10 @@ int main(int argc, char** argv) {
         partition = Partition::dynamic;
       else if (v == "fixed")
         partition = Partition::fixed;
+      else if (v == "owner")
+        partition = Partition::owner;
       else
-        usage_error("--partition = '" + std::string(v) + "': allowed dynamic, fixed");
+        usage_error("--partition = '" + std::string(v) + "': allowed dynamic, fixed, owner");
     } else if (arg == "--rounds")
       rounds = static_cast<int>(parse_number("--rounds", value(), 1, 1000));
     else if (arg == "--rolling") {
@@ -383,7 +385,7 @@ int main(int argc, char** argv) {
     } else if (arg == "--help" || arg == "-h") {
       std::printf(
           "usage: dem-bench [--scene FILE] [--steps N] [--threads T] [--deform RATE] [--rolling none|epsd2|epsd|cdt]\n"
-          "                 [--tangential history|incremental] [--compat] [--sort STEPS] [--serial] [--partition dynamic|fixed] [--json]\n"
+          "                 [--tangential history|incremental] [--compat] [--sort STEPS] [--serial] [--partition dynamic|fixed|owner] [--json]\n"
           "       dem-bench --costs [--scene FILE] [--steps N] [--threads T] [--rounds R]\n"
           "       dem-bench --probe [--threads T]   (the machine alone: register-only scaling, ping-pong)\n"
           "       dem-bench --scaling [--scene FILE] [--steps N] [--threads T] [--rounds R] [--deform RATE] [--partition P] [--probe] [--json]\n");

@@ -1,6 +1,6 @@
 # apps.bench_digest: dem-bench on the shipped dense-20k scene (scene B: the deforming box, so the
 # list is rebuilt and contacts open and close) gives the same state digest with 1 and 2 TBB threads
-# and with the serial backend, with the fixed partition of chunks to threads, and a different one
+# and with the serial backend, with the fixed and owner partitions of chunks to threads, and a different one
 # after one more step (the digest sees the state);
 # --scaling reports its two worlds equal.
 # dem-bench ARGN on scene B: its JSON report (fatal if it exits non-zero).
@@ -22,9 +22,10 @@ bench_digest(two --steps 40 --threads 2)
 bench_digest(serial --steps 40 --serial)
 bench_digest(later --steps 41 --threads 2)
 bench_digest(fixed --steps 40 --threads 2 --partition fixed)
+bench_digest(owner --steps 40 --threads 2 --partition owner)
 message(STATUS "digests: 1 thread ${one}, 2 threads ${two}, serial ${serial}, one step later ${later}")
-if(NOT one STREQUAL two OR NOT one STREQUAL serial OR NOT one STREQUAL fixed)
-  message(FATAL_ERROR "state digest depends on the thread count or the partition: ${one} / ${two} / ${serial} / fixed ${fixed}")
+if(NOT one STREQUAL two OR NOT one STREQUAL serial OR NOT one STREQUAL fixed OR NOT one STREQUAL owner)
+  message(FATAL_ERROR "state digest depends on the thread count or the partition: ${one} / ${two} / ${serial} / fixed ${fixed} / owner ${owner}")
 endif()
 if(one STREQUAL later)
   message(FATAL_ERROR "state digest unchanged by one more step: it does not see the state")

@@ -16,22 +16,24 @@
 using namespace sandcell;
 
 TEST_CASE("parallel_for visits every index exactly once, in chunks fixed by n and grain") {
-  for (int threads : {1, 2, 3, 8}) {
-    Executor exec({Backend::tbb, threads});
-    for (std::size_t n : {0u, 1u, 7u, 1000u, 4097u}) {
-      std::vector<int> hits(n, 0);
-      exec.parallel_for(n, 64, [&](std::size_t b, std::size_t e) {
-        // Chunk boundaries are multiples of the grain, whatever the thread count.
-        CHECK(b % 64 == 0);
-        CHECK((e == n || e - b == 64));
-        for (std::size_t k = b; k < e; ++k) ++hits[k];
-      });
-      for (std::size_t k = 0; k < n; ++k) REQUIRE(hits[k] == 1);
+  for (Partition partition : {Partition::dynamic, Partition::fixed, Partition::owner})
+    for (int threads : {1, 2, 3, 8}) {
+      CAPTURE(static_cast<int>(partition));
+      Executor exec({Backend::tbb, threads, partition});
+      for (std::size_t n : {0u, 1u, 7u, 1000u, 4097u}) {
+        std::vector<int> hits(n, 0);
+        exec.parallel_for(n, 64, [&](std::size_t b, std::size_t e) {
+          // Chunk boundaries are multiples of the grain, whatever the thread count.
+          CHECK(b % 64 == 0);
+          CHECK((e == n || e - b == 64));
+          for (std::size_t k = b; k < e; ++k) ++hits[k];
+        });
+        for (std::size_t k = 0; k < n; ++k) REQUIRE(hits[k] == 1);
+      }
     }
-  }
 }
 
-TEST_CASE("deterministic_reduce gives the same bits for the serial backend and 1, 2, 3, 8 threads") {
+TEST_CASE("deterministic_reduce gives the same bits for the serial backend and 1, 2, 3, 8 threads, any partition") {
   // Values spanning 12 orders of magnitude: a sum whose rounding depends on the association order,
   // so any thread-dependent order would show in the bits.
   std::mt19937_64 rng(7);
@@ -60,13 +62,14 @@ TEST_CASE("deterministic_reduce gives the same bits for the serial backend and 1
     expected += s;
   }
   CHECK(std::memcmp(&reference, &expected, sizeof(double)) == 0);
-  for (int threads : {1, 2, 3, 8}) {
-    Executor exec({Backend::tbb, threads});
-    for (int repeat = 0; repeat < 5; ++repeat) {
-      const double s = sum_with(exec);
-      CHECK(std::memcmp(&s, &reference, sizeof(double)) == 0);
+  for (Partition partition : {Partition::dynamic, Partition::fixed, Partition::owner})
+    for (int threads : {1, 2, 3, 8}) {
+      Executor exec({Backend::tbb, threads, partition});
+      for (int repeat = 0; repeat < 5; ++repeat) {
+        const double s = sum_with(exec);
+        CHECK(std::memcmp(&s, &reference, sizeof(double)) == 0);
+      }
     }
-  }
 }
 
 TEST_CASE("executor reports its thread count") {
