@@ -1454,7 +1454,7 @@ void Campaign::write_indices() {
 
 }  // namespace
 
-// `triaxial analyze|study|localization ...`: runs the Python script <command>.py with the remaining arguments;
+// `triaxial analyze|study|localization|calibrate ...`: runs the Python script <command>.py with the remaining arguments;
 // the script's usage lines name "triaxial <command>", and the study finds this binary through
 // SANDCELL_TRIAXIAL.
 static int script_main(const std::string& command, int argc, const char* const* argv, std::ostream& err) {
@@ -1740,7 +1740,10 @@ static void add_run_options(CLI::App& app, CommandLine& cl) {
       "Speed versus accuracy (timestep, inertial number, stiffness, restitution, N; table and Pareto figure):\n"
       "  triaxial study [CONFIG] [--preset quick|inertia|full|size] [--out DIR]   (triaxial study --help)\n"
       "Strain localization (shear bands) from the particle snapshots of results files:\n"
-      "  triaxial localization RESULTS.h5... [--out DIR] [--grid G] [--whole] [--slabs K]   (triaxial localization --help)");
+      "  triaxial localization RESULTS.h5... [--out DIR] [--grid G] [--whole] [--slabs K]   (triaxial localization --help)\n"
+      "Calibration of micro-parameters against macroscopic targets (surrogate, posterior, check run):\n"
+      "  triaxial calibrate CONFIG --targets FILE --param KEY=LO:HI... [--budget N] [--out DIR] [--resume]   "
+      "(triaxial calibrate --help)");
   app.add_option("config", options.config_path, "TOML configuration (none: the embedded default)");
   app.add_option(
          "--threads", options.threads,
@@ -1868,6 +1871,8 @@ int triaxial_main(int argc, const char* const* argv, std::ostream& out, std::ost
   if (argc >= 2 && std::string(argv[1]) == "study") return script_main("study", argc - 1, argv + 1, err);
   // `triaxial localization RESULTS.h5... [--out DIR] [--grid G] [--whole] [--slabs K]`: strain fields between snapshots (localization.py).
   if (argc >= 2 && std::string(argv[1]) == "localization") return script_main("localization", argc - 1, argv + 1, err);
+  // `triaxial calibrate CONFIG --targets FILE --param KEY=LO:HI...`: micro-parameters against targets (calibrate.py).
+  if (argc >= 2 && std::string(argv[1]) == "calibrate") return script_main("calibrate", argc - 1, argv + 1, err);
   // `triaxial slurm CONFIG --out DIR [--submit]`: the campaign as Slurm job arrays (slurm.hpp).
   if (argc >= 2 && std::string(argv[1]) == "slurm") return slurm_main(argc - 1, argv + 1, out, err);
   CommandLine cl;

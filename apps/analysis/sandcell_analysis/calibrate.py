@@ -1,0 +1,424 @@
+"""Calibration of a triaxial configuration's micro-parameters against macroscopic targets
+(`triaxial calibrate`).
+
+    triaxial calibrate CONFIG --targets FILE --param KEY=LO:HI [--param ...] [--budget N]
+        [--out DIR] [--threads T] [--seed S] [--resume]
+
+Method (a surrogate and its posterior, all in numpy/scipy):
+1. Design: `budget` points of a scrambled Sobol sequence over the box of the free parameters (a
+   parameter spanning more than a decade, e.g. `material.young`, is sampled in log).
+2. Runs: each point is CONFIG with the parameters replaced, run by the triaxial binary in
+   OUT/runs/run-NNN (resumable: a finished run is never run again; `--resume` continues a killed
+   calibration). Campaign-level targets also run `triaxial analyze` on it.
+3. Surrogate: per target, a quadratic polynomial in the normalized parameters, by least squares;
+   its residual standard deviation s_t (over the runs' degrees of freedom) is the surrogate error.
+4. Posterior: uniform prior on the box, Gaussian likelihood of every target with variance
+   sigma_t^2 + s_t^2, evaluated on 2^16 Sobol points of the box: posterior mean, standard deviation
+   and 5-95 % interval of each parameter, and its MAP.
+5. Identifiability: a parameter whose posterior standard deviation is above half its prior's
+   (range / sqrt 12) is reported as not identified by these targets; the sensitivity table gives,
+   per target and parameter, the change of the target across the parameter's range in units of
+   the target's sigma (at the posterior mean of the others).
+6. Check: one more run at the posterior mean, against every target.
+Outputs in OUT: runs.csv (every run's parameters and measures), calibration.json, calibration.md,
+calibration.png (each target against each parameter, with the surrogate's slice; the marginals).
+
+Targets (TOML): one entry per measure, value and sigma (the tolerance the fit should respect):
+    [targets]
+    phi_c = { value = 22.0, sigma = 0.5 }        # campaign measures: triaxial analyze's summary
+    "peak_eta:p-b0.00-p0_500kPa" = { value = 1.1, sigma = 0.02 }   # one test's index.csv column
+    e0 = { value = 0.65, sigma = 0.01 }          # without ':TEST', the mean over the tests
+"""
+import argparse
+import csv
+import json
+import math
+import os
+import subprocess
+import sys
+import tomllib
+
+import numpy as np
+
+from .results import read_index
+from .study import toml_dump
+
+PROG = os.environ.get("SANDCELL_ANALYZE_PROG", "calibrate.py")
+
+# The free parameters a calibration may vary: config key -> (lowest allowed, highest allowed).
+PARAMETERS = {
+    "material.friction": (0.0, 10.0),
+    "material.rolling_friction": (0.0, 10.0),
+    "material.restitution": (1e-3, 1.0),
+    "material.young": (1e3, 1e13),
+    "material.poisson": (-0.99, 0.49),
+    "prepare.friction": (0.0, 10.0),
+    "prepare.rolling_friction": (0.0, 10.0),
+    "contact.rolling_damping": (0.0, 10.0),
+}
+
+# Campaign measures (triaxial analyze's summary.json): name -> path of keys.
+CAMPAIGN_TARGETS = {
+    "phi_c": ("m_theta", "phi_c_deg"),
+    "phi_e": ("m_theta", "phi_e_deg"),
+    "M_c": ("m_theta", "params", "M_c"),
+    "e_Gamma": ("csl", "params", "e_gamma"),
+    "lambda": ("csl", "params", "lambda"),
+    "xi": ("csl", "params", "xi"),
+    "d0": ("li_dafalias", "params", "d0"),
+    "m": ("li_dafalias", "params", "m"),
+}
+# Per-test measures (index.csv columns), as NAME (mean over the tests) or NAME:TEST.
+TEST_TARGETS = ("e0", "Z0", "peak_eta", "eps1_at_peak", "final_eta", "final_e", "final_p_Pa")
+
+
+def fail(msg, code=2):
+    print(f"{PROG}: {msg}", file=sys.stderr)
+    sys.exit(code)
+
+
+def parse_param(text):
+    if "=" not in text or ":" not in text.split("=", 1)[1]:
+        fail(f"--param {text}: expected KEY=LO:HI, e.g. material.friction=0.2:0.8")
+    key, rng = text.split("=", 1)
+    if key not in PARAMETERS:
+        fail(f"--param {key}: unknown parameter (allowed: {', '.join(PARAMETERS)})")
+    try:
+        lo, hi = (float(x) for x in rng.split(":", 1))
+    except ValueError:
+        fail(f"--param {text}: LO and HI must be numbers")
+    a, b = PARAMETERS[key]
+    if not (math.isfinite(lo) and math.isfinite(hi)) or not lo < hi:
+        fail(f"--param {key}={lo:g}:{hi:g}: the range must be non-empty with LO < HI")
+    if lo < a or hi > b:
+        fail(f"--param {key}={lo:g}:{hi:g}: outside what the config allows, [{a:g}, {b:g}]")
+    return key, lo, hi
+
+
+def parse_targets(path):
+    try:
+        with open(path, "rb") as f:
+            doc = tomllib.load(f)
+    except (OSError, tomllib.TOMLDecodeError) as e:
+        fail(f"--targets {path}: {e}")
+    table = doc.get("targets")
+    if not isinstance(table, dict) or not table:
+        fail(f"--targets {path}: expected a [targets] table with at least one entry")
+    targets = {}
+    for name, spec in table.items():
+        base = name.split(":", 1)[0]
+        if base not in CAMPAIGN_TARGETS and base not in TEST_TARGETS:
+            fail(f"--targets {path}: targets.{name}: unknown measure (allowed: "
+                 f"{', '.join(list(CAMPAIGN_TARGETS) + list(TEST_TARGETS))}, the latter optionally as NAME:TEST)")
+        if base in CAMPAIGN_TARGETS and ":" in name:
+            fail(f"--targets {path}: targets.{name}: {base} is a campaign measure, it takes no ':TEST'")
+        if not isinstance(spec, dict) or "value" not in spec or "sigma" not in spec:
+            fail(f"--targets {path}: targets.{name}: expected {{ value = ..., sigma = ... }}")
+        value, sigma = spec["value"], spec["sigma"]
+        if not all(isinstance(x, (int, float)) and math.isfinite(x) for x in (value, sigma)) or not sigma > 0:
+            fail(f"--targets {path}: targets.{name}: value must be a finite number and sigma > 0 "
+                 f"(got {value!r}, {sigma!r})")
+        targets[name] = (float(value), float(sigma))
+    return targets
+
+
+def n_coefficients(p):
+    return (p + 1) * (p + 2) // 2
+
+
+def min_budget(p):
+    """A quadratic surrogate in p parameters, with two degrees of freedom left for its error."""
+    return n_coefficients(p) + 2
+
+
+# ------------------------------------------------------------------------------ design and runs
+def log_scale(lo, hi):
+    return lo > 0 and hi / lo > 10.0
+
+
+def to_params(u, space):
+    """Unit-cube points -> parameter values (log where the range spans more than a decade)."""
+    out = np.empty_like(u)
+    for k, (_, lo, hi) in enumerate(space):
+        if log_scale(lo, hi):
+            out[:, k] = np.exp(np.log(lo) + u[:, k] * (np.log(hi) - np.log(lo)))
+        else:
+            out[:, k] = lo + u[:, k] * (hi - lo)
+    return out
+
+
+def to_unit(x, space):
+    u = np.empty_like(x, dtype=float)
+    for k, (_, lo, hi) in enumerate(space):
+        if log_scale(lo, hi):
+            u[..., k] = (np.log(x[..., k]) - np.log(lo)) / (np.log(hi) - np.log(lo))
+        else:
+            u[..., k] = (x[..., k] - lo) / (hi - lo)
+    return u
+
+
+def design(space, budget, seed):
+    from scipy.stats import qmc
+    return qmc.Sobol(d=len(space), scramble=True, seed=seed).random(budget)
+
+
+def run_config(base, space, x):
+    cfg = json.loads(json.dumps(base))
+    for (key, _, _), v in zip(space, x):
+        table, name = key.split(".", 1)
+        cfg.setdefault(table, {})[name] = float(v)
+    cfg.setdefault("output", {})["plot"] = False
+    return cfg
+
+
+def measures_of(folder, targets, triaxial):
+    """The targets' measures of one finished run."""
+    rows = [r for r in read_index(folder) if r.get("status", "").startswith("done")]
+    if not rows:
+        return None
+    out = {}
+    summary = None
+    for name in targets:
+        base, _, test = name.partition(":")
+        if base in CAMPAIGN_TARGETS:
+            if summary is None:
+                analysis = os.path.join(folder, "analysis")
+                path = os.path.join(analysis, "summary.json")
+                if not os.path.exists(path):
+                    subprocess.run([triaxial, "analyze", folder, "--out", analysis], capture_output=True, text=True)
+                summary = json.load(open(path)) if os.path.exists(path) else {}
+            v = summary
+            for k in CAMPAIGN_TARGETS[base]:
+                v = v.get(k) if isinstance(v, dict) else None
+            out[name] = float(v) if isinstance(v, (int, float)) else float("nan")
+        else:
+            chosen = [r for r in rows if not test or r["test"] == test]
+            if test and not chosen:
+                fail(f"targets.{name}: no test named {test} in {folder}/index.csv "
+                     f"(tests: {', '.join(r['test'] for r in rows)})")
+            out[name] = float(np.mean([float(r[base]) for r in chosen]))
+    return out
+
+
+def run_point(name, cfg, args):
+    folder = os.path.join(args.out, "runs", name)
+    os.makedirs(folder, exist_ok=True)
+    path = os.path.join(folder, "config.toml")
+    text = toml_dump(cfg)
+    rows = read_index(folder) if os.path.exists(os.path.join(folder, "index.csv")) else []
+    if rows and all(r.get("status", "").startswith("done") for r in rows):
+        return folder
+    with open(path, "w") as f:
+        f.write(text)
+    resume = any(fn.endswith(".checkpoint.h5") or fn.startswith("sample-") for fn in os.listdir(folder))
+    cmd = [args.triaxial, path, "--out", folder, "--threads", str(args.threads),
+           "--resume" if resume else "--overwrite"]
+    print(f"{PROG}: {name}: {' '.join(cmd)}", flush=True)
+    with open(os.path.join(folder, "log.txt"), "a") as log:
+        rc = subprocess.run(cmd, stdout=log, stderr=subprocess.STDOUT).returncode
+    if rc != 0:
+        fail(f"{name}: triaxial exited {rc}; see {os.path.join(folder, 'log.txt')}", 1)
+    return folder
+
+
+# ------------------------------------------------------------------------------ surrogate, posterior
+def features(u):
+    """[1, u_k, u_k u_l (k <= l)] of points in [-1, 1]^p."""
+    u = np.atleast_2d(u)
+    cols = [np.ones(len(u))]
+    p = u.shape[1]
+    cols += [u[:, k] for k in range(p)]
+    cols += [u[:, k] * u[:, j] for k in range(p) for j in range(k, p)]
+    return np.stack(cols, axis=1)
+
+
+def fit_surrogate(u, y):
+    """Least-squares quadratic; returns (coefficients, residual standard deviation)."""
+    a = features(2.0 * u - 1.0)
+    coef, *_ = np.linalg.lstsq(a, y, rcond=None)
+    resid = y - a @ coef
+    dof = max(1, len(y) - a.shape[1])
+    return coef, float(np.sqrt(np.sum(resid ** 2) / dof))
+
+
+def predict(coef, u):
+    return features(2.0 * np.atleast_2d(u) - 1.0) @ coef
+
+
+def posterior(space, targets, surrogates, seed, n=1 << 16):
+    from scipy.stats import qmc
+    u = qmc.Sobol(d=len(space), scramble=True, seed=seed + 1).random(n)
+    logl = np.zeros(n)
+    for name, (value, sigma) in targets.items():
+        coef, s = surrogates[name]
+        logl += -0.5 * (predict(coef, u) - value) ** 2 / (sigma ** 2 + s ** 2)
+    w = np.exp(logl - logl.max())
+    w /= w.sum()
+    x = to_params(u, space)
+    mean = w @ x
+    std = np.sqrt(np.maximum(w @ (x - mean) ** 2, 0.0))
+    out = {}
+    for k, (key, lo, hi) in enumerate(space):
+        order = np.argsort(x[:, k])
+        cdf = np.cumsum(w[order])
+        q05, q95 = (float(x[order, k][np.searchsorted(cdf, q)]) for q in (0.05, 0.95))
+        prior_std = (hi - lo) / math.sqrt(12.0) if not log_scale(lo, hi) else float(np.std(to_params(u, space)[:, k]))
+        out[key] = dict(mean=float(mean[k]), std=float(std[k]), q05=q05, q95=q95, map=float(x[np.argmax(w), k]),
+                        prior_std=prior_std, identified=bool(std[k] < 0.5 * prior_std))
+    ess = float(1.0 / np.sum(w ** 2))
+    return out, u, w, ess
+
+
+def sensitivity(space, targets, surrogates, center_u):
+    """Per target and parameter: the target's change across the parameter's range, in sigmas."""
+    table = {}
+    for name, (value, sigma) in targets.items():
+        coef, s = surrogates[name]
+        row = {}
+        for k, (key, _, _) in enumerate(space):
+            ends = np.repeat(center_u[None, :], 2, axis=0)
+            ends[:, k] = (0.0, 1.0)
+            lo, hi = predict(coef, ends)
+            row[key] = float((hi - lo) / sigma)
+        table[name] = row
+    return table
+
+
+# ------------------------------------------------------------------------------ reports
+def write_runs(path, space, targets, xs, ys):
+    with open(path, "w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(["run"] + [k for k, _, _ in space] + list(targets))
+        for i, (x, y) in enumerate(zip(xs, ys)):
+            w.writerow([f"run-{i:03d}"] + [f"{v:.10g}" for v in x] + [f"{y[n]:.10g}" for n in targets])
+
+
+def plot(path, space, targets, xs, ys, surrogates, post, center_u):
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    p, t = len(space), len(targets)
+    fig, axes = plt.subplots(t + 1, p, figsize=(3.6 * p, 2.8 * (t + 1)), squeeze=False)
+    for j, (name, (value, sigma)) in enumerate(targets.items()):
+        for k, (key, lo, hi) in enumerate(space):
+            ax = axes[j][k]
+            ax.plot(xs[:, k], [y[name] for y in ys], "o", ms=4, label="runs")
+            grid = np.repeat(center_u[None, :], 60, axis=0)
+            grid[:, k] = np.linspace(0.0, 1.0, 60)
+            ax.plot(to_params(grid, space)[:, k], predict(surrogates[name][0], grid), "-",
+                    label="surrogate (others at the posterior mean)")
+            ax.axhspan(value - sigma, value + sigma, color="tab:green", alpha=0.25, label="target +- sigma")
+            ax.set_xlabel(key)
+            ax.set_ylabel(name)
+    for k, (key, lo, hi) in enumerate(space):
+        ax = axes[t][k]
+        x = to_params(post["u"], space)[:, k]
+        ax.hist(x, bins=40, weights=post["w"], color="tab:purple")
+        ax.axvline(post["params"][key]["mean"], color="k", lw=1)
+        ax.set_xlabel(key)
+        ax.set_ylabel("posterior")
+    axes[0][0].legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def report_md(path, args, space, targets, result):
+    lines = [f"# Calibration of {args.config}", "",
+             f"Command: `triaxial calibrate {' '.join(sys.argv[1:])}`", "",
+             f"{len(result['runs'])} runs (budget {args.budget}) and one check run; quadratic surrogate per target; "
+             f"effective posterior sample size {result['ess']:.0f}.", "",
+             "| parameter | range | posterior mean +- std | 5-95 % | MAP | identified |", "|---|---|---|---|---|---|"]
+    for key, lo, hi in space:
+        q = result["params"][key]
+        lines.append(f"| {key} | {lo:g} - {hi:g} | {q['mean']:.4g} +- {q['std']:.2g} | {q['q05']:.4g} - {q['q95']:.4g} "
+                     f"| {q['map']:.4g} | {'yes' if q['identified'] else 'no'} |")
+    lines += ["", "| target | value +- sigma | surrogate error | check run | z |", "|---|---|---|---|---|"]
+    for name, (value, sigma) in targets.items():
+        c = result["check"].get(name, float("nan"))
+        lines.append(f"| {name} | {value:.4g} +- {sigma:.2g} | {result['surrogate_error'][name]:.2g} | {c:.4g} | "
+                     f"{(c - value) / sigma:+.2f} |")
+    lines += ["", "Sensitivity: change of each target across each parameter's range, in sigmas of the target:", "",
+              "| target | " + " | ".join(k for k, _, _ in space) + " |", "|---|" + "---|" * len(space)]
+    for name in targets:
+        lines.append(f"| {name} | " + " | ".join(f"{result['sensitivity'][name][k]:+.1f}" for k, _, _ in space) + " |")
+    lines += ["", "![targets against parameters, surrogate slices and posterior marginals](calibration.png)", ""]
+    with open(path, "w") as f:
+        f.write("\n".join(lines))
+
+
+# ------------------------------------------------------------------------------ main
+def main(argv=None):
+    ap = argparse.ArgumentParser(prog=PROG, description=__doc__.split("\n")[0],
+                                 formatter_class=argparse.RawDescriptionHelpFormatter,
+                                 epilog="Free parameters: " + ", ".join(PARAMETERS) + ". Targets: " +
+                                 ", ".join(CAMPAIGN_TARGETS) + " (campaign), " + ", ".join(TEST_TARGETS) +
+                                 " (per test, NAME or NAME:TEST).")
+    ap.add_argument("config", help="the triaxial configuration (TOML) whose parameters are calibrated")
+    ap.add_argument("--targets", required=True, help="TOML file with a [targets] table")
+    ap.add_argument("--param", action="append", default=[], metavar="KEY=LO:HI", help="a free parameter and its range")
+    ap.add_argument("--budget", type=int, default=None, help="runs of the design (default: 4 x the minimum)")
+    ap.add_argument("--out", default=None, help="output directory (default: results/calibrate-<config name>)")
+    ap.add_argument("--threads", type=int, default=2)
+    ap.add_argument("--seed", type=int, default=1, help="the design's Sobol scrambling seed")
+    ap.add_argument("--resume", action="store_true", help="continue a calibration in OUT (finished runs are kept)")
+    args = ap.parse_args(argv)
+    if not args.param:
+        fail("no --param given: at least one free parameter KEY=LO:HI")
+    space = [parse_param(p) for p in args.param]
+    keys = [k for k, _, _ in space]
+    if len(set(keys)) != len(keys):
+        fail(f"--param: a parameter is given twice ({', '.join(keys)})")
+    targets = parse_targets(args.targets)
+    need = min_budget(len(space))
+    if args.budget is None:
+        args.budget = 4 * need
+    if args.budget < need:
+        fail(f"--budget {args.budget}: a quadratic surrogate in {len(space)} parameter(s) needs at least {need} runs")
+    if args.threads < 1:
+        fail(f"--threads {args.threads}: must be >= 1")
+    args.triaxial = os.environ.get("SANDCELL_TRIAXIAL", "triaxial")
+    try:
+        with open(args.config, "rb") as f:
+            base = tomllib.load(f)
+    except (OSError, tomllib.TOMLDecodeError) as e:
+        fail(f"{args.config}: {e}")
+    if args.out is None:
+        args.out = os.path.join("results", "calibrate-" + os.path.splitext(os.path.basename(args.config))[0])
+    if os.path.exists(os.path.join(args.out, "calibration.json")) and not args.resume:
+        fail(f"--out {args.out}: holds a finished calibration; pass --resume to reuse its runs, or another --out")
+    os.makedirs(args.out, exist_ok=True)
+
+    u = design(space, args.budget, args.seed)
+    xs = to_params(u, space)
+    ys = []
+    for i, x in enumerate(xs):
+        folder = run_point(f"run-{i:03d}", run_config(base, space, x), args)
+        m = measures_of(folder, targets, args.triaxial)
+        if m is None:
+            fail(f"run-{i:03d}: no finished test in {folder}/index.csv", 1)
+        ys.append(m)
+    write_runs(os.path.join(args.out, "runs.csv"), space, targets, xs, ys)
+    surrogates = {}
+    for name in targets:
+        y = np.array([m[name] for m in ys])
+        if not np.all(np.isfinite(y)):
+            fail(f"targets.{name}: not measured in every run (runs.csv): the analysis could not fit it", 1)
+        surrogates[name] = fit_surrogate(u, y)
+    params, pu, pw, ess = posterior(space, targets, surrogates, args.seed)
+    center = np.array([params[k]["mean"] for k in keys])
+    center_u = to_unit(center[None, :], space)[0]
+    check_folder = run_point("check", run_config(base, space, center), args)
+    check = measures_of(check_folder, targets, args.triaxial)
+    result = dict(config=args.config, budget=args.budget, seed=args.seed, runs=[f"run-{i:03d}" for i in range(len(xs))],
+                  params=params, ess=ess, targets={n: dict(value=v, sigma=s) for n, (v, s) in targets.items()},
+                  surrogate_error={n: surrogates[n][1] for n in targets}, check=check,
+                  sensitivity=sensitivity(space, targets, surrogates, center_u))
+    with open(os.path.join(args.out, "calibration.json"), "w") as f:
+        json.dump(result, f, indent=1)
+    report_md(os.path.join(args.out, "calibration.md"), args, space, targets, result)
+    plot(os.path.join(args.out, "calibration.png"), space, targets, xs, ys, surrogates,
+         dict(u=pu, w=pw, params=params), center_u)
+    print(f"{PROG}: " + ", ".join(f"{k} = {params[k]['mean']:.4g} +- {params[k]['std']:.2g}" for k in keys) +
+          f"; report {os.path.join(args.out, 'calibration.md')}")
+    return 0

@@ -1,0 +1,111 @@
+"""`triaxial calibrate` (sandcell_analysis.calibrate): the calibrate-smoke run and its bad input.
+
+The smoke run: the truth is the smoke config at material.friction = 0.5, prepare.friction = 0.2; its
+own e0 and peak q/p are the targets. Calibrating the two frictions over [0.2, 0.8] x [0, 0.4] from
+12 runs must give posteriors that contain the truth: each posterior mean within 3 posterior
+standard deviations of the truth (for a Gaussian posterior that fails with probability 0.3 %; the
+runs are deterministic, so the test cannot be flaky), and prepare.friction, which sets e0 through
+the packing's density, identified (posterior std below half the prior's). Needs the triaxial binary
+(SANDCELL_TRIAXIAL, set by ctest).
+"""
+import json
+import os
+import shutil
+import subprocess
+import sys
+import tempfile
+
+import pytest
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+ROOT = os.path.dirname(os.path.dirname(HERE))
+SCRIPT = os.path.join(ROOT, "apps", "triaxial", "calibrate.py")
+CONFIG = os.path.join(HERE, "calibrate-smoke.toml")
+TRIAXIAL = os.environ.get("SANDCELL_TRIAXIAL", "")
+TRUTH = {"material.friction": 0.5, "prepare.friction": 0.2}
+PARAMS = ["--param", "material.friction=0.2:0.8", "--param", "prepare.friction=0.0:0.4"]
+
+needs_binary = pytest.mark.skipif(not os.access(TRIAXIAL, os.X_OK), reason="SANDCELL_TRIAXIAL not set (ctest sets it)")
+
+
+def calibrate(*args, cwd=None):
+    env = dict(os.environ, SANDCELL_TRIAXIAL=TRIAXIAL)
+    return subprocess.run([sys.executable, SCRIPT, *args], capture_output=True, text=True, env=env, cwd=cwd)
+
+
+@pytest.fixture(scope="module")
+def work():
+    d = tempfile.mkdtemp(prefix="calibrate-")
+    yield d
+    shutil.rmtree(d, ignore_errors=True)
+
+
+def write_targets(path, text):
+    with open(path, "w") as f:
+        f.write(text)
+    return path
+
+
+@needs_binary
+def test_smoke_recovers_the_truth_within_its_uncertainty(work):
+    # The truth's measures, from the app itself (the config holds the true values).
+    truth = os.path.join(work, "truth")
+    subprocess.run([TRIAXIAL, CONFIG, "--out", truth, "--overwrite", "--threads", "1"], check=True,
+                   capture_output=True)
+    import csv
+    row = next(csv.DictReader(open(os.path.join(truth, "index.csv"))))
+    targets = write_targets(os.path.join(work, "targets.toml"),
+                            f"[targets]\ne0 = {{ value = {row['e0']}, sigma = 0.005 }}\n"
+                            f"peak_eta = {{ value = {row['peak_eta']}, sigma = 0.02 }}\n")
+    out = os.path.join(work, "cal")
+    r = calibrate(CONFIG, "--targets", targets, *PARAMS, "--budget", "12", "--out", out, "--threads", "1")
+    assert r.returncode == 0, r.stderr
+    result = json.load(open(os.path.join(out, "calibration.json")))
+    for key, true in TRUTH.items():
+        q = result["params"][key]
+        assert abs(q["mean"] - true) <= 3.0 * q["std"], (key, q)
+    assert result["params"]["prepare.friction"]["identified"]
+    # The check run at the posterior mean lands within 3 sigma (target sigma and surrogate error) of
+    # every target.
+    for name, t in result["targets"].items():
+        tol = 3.0 * (t["sigma"] ** 2 + result["surrogate_error"][name] ** 2) ** 0.5
+        assert abs(result["check"][name] - t["value"]) <= tol, (name, result["check"][name], t)
+    for f in ("runs.csv", "calibration.md", "calibration.png"):
+        assert os.path.getsize(os.path.join(out, f)) > 0
+    # Resumable: a second call with --resume runs nothing again (every run folder is finished).
+    r2 = calibrate(CONFIG, "--targets", targets, *PARAMS, "--budget", "12", "--out", out, "--threads", "1",
+                   "--resume")
+    assert r2.returncode == 0, r2.stderr
+    assert "run-000" not in r2.stdout and "check:" not in r2.stdout, r2.stdout
+
+
+@pytest.mark.parametrize("args, expect", [
+    (["--param", "material.fricton=0.2:0.8"], "--param material.fricton: unknown parameter"),
+    (["--param", "material.friction=0.8:0.2"], "the range must be non-empty with LO < HI"),
+    (["--param", "material.friction=0.5:0.5"], "the range must be non-empty with LO < HI"),
+    (["--param", "material.friction=0.2"], "expected KEY=LO:HI"),
+    (["--param", "material.friction=0.2:0.8", "--param", "prepare.friction=0:0.4", "--budget", "7"],
+     "--budget 7: a quadratic surrogate in 2 parameter(s) needs at least 8 runs"),
+])
+def test_bad_parameters_exit_2_with_one_line(work, args, expect):
+    targets = write_targets(os.path.join(work, "ok.toml"), "[targets]\ne0 = { value = 0.65, sigma = 0.01 }\n")
+    r = calibrate(CONFIG, "--targets", targets, *args, "--out", os.path.join(work, "bad"))
+    assert r.returncode == 2
+    assert expect in r.stderr
+    assert r.stderr.count("\n") == 1
+    assert not os.path.exists(os.path.join(work, "bad"))
+
+
+@pytest.mark.parametrize("text, expect", [
+    ("[targets]\nphi_x = { value = 1, sigma = 1 }\n", "targets.phi_x: unknown measure"),
+    ("[targets]\ne0 = { value = 0.6 }\n", "targets.e0: expected { value = ..., sigma = ... }"),
+    ("[targets]\ne0 = { value = 0.6, sigma = 0 }\n", "sigma > 0"),
+    ("[targets]\n\"phi_c:p-b0\" = { value = 22, sigma = 1 }\n", "takes no ':TEST'"),
+    ("", "expected a [targets] table"),
+])
+def test_bad_targets_exit_2_with_one_line(work, text, expect):
+    targets = write_targets(os.path.join(work, "bad-targets.toml"), text)
+    r = calibrate(CONFIG, "--targets", targets, *PARAMS, "--out", os.path.join(work, "bad"))
+    assert r.returncode == 2
+    assert expect in r.stderr, r.stderr
+    assert r.stderr.count("\n") == 1
