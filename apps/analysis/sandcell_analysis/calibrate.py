@@ -158,8 +158,11 @@ def to_unit(x, space):
 
 
 def design(space, budget, seed):
+    import warnings
     from scipy.stats import qmc
-    return qmc.Sobol(d=len(space), scramble=True, seed=seed).random(budget)
+    with warnings.catch_warnings():  # a budget that is not a power of 2 loses the balance, not the coverage
+        warnings.simplefilter("ignore", UserWarning)
+        return qmc.Sobol(d=len(space), scramble=True, seed=seed).random(budget)
 
 
 def run_config(base, space, x):
