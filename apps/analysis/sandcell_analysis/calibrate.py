@@ -34,6 +34,7 @@ import csv
 import json
 import math
 import os
+import shutil
 import subprocess
 import sys
 import tomllib
@@ -209,11 +210,14 @@ def run_point(name, cfg, args):
     path = os.path.join(folder, "config.toml")
     text = toml_dump(cfg)
     rows = read_index(folder) if os.path.exists(os.path.join(folder, "index.csv")) else []
-    if rows and all(r.get("status", "").startswith("done") for r in rows):
+    old = open(path).read() if os.path.exists(path) else None
+    same = old == text  # a folder of another point (changed ranges, a new posterior mean) is run again
+    if same and rows and all(r.get("status", "").startswith("done") for r in rows):
         return folder
     with open(path, "w") as f:
         f.write(text)
-    resume = any(fn.endswith(".checkpoint.h5") or fn.startswith("sample-") for fn in os.listdir(folder))
+    shutil.rmtree(os.path.join(folder, "analysis"), ignore_errors=True)  # the measures of what runs now
+    resume = same and any(fn.endswith(".checkpoint.h5") or fn.startswith("sample-") for fn in os.listdir(folder))
     cmd = [args.triaxial, path, "--out", folder, "--threads", str(args.threads),
            "--resume" if resume else "--overwrite"]
     print(f"{PROG}: {name}: {' '.join(cmd)}", flush=True)
