@@ -77,6 +77,14 @@ def test_smoke_recovers_the_truth_within_its_uncertainty(work):
                    "--resume")
     assert r2.returncode == 0, r2.stderr
     assert "run-000" not in r2.stdout and "check:" not in r2.stdout, r2.stdout
+    # A changed range is other points: --resume runs them again (over the old folders), never
+    # mixing the old points' measures into the new surrogate.
+    r3 = calibrate(CONFIG, "--targets", targets, "--param", "material.friction=0.3:0.7", "--param",
+                   "prepare.friction=0.0:0.4", "--budget", "12", "--out", out, "--threads", "1", "--resume")
+    assert r3.returncode == 0, r3.stderr
+    assert "run-000" in r3.stdout and "--overwrite" in r3.stdout
+    rows = open(os.path.join(out, "runs.csv")).read().splitlines()[1:]
+    assert all(0.3 <= float(row.split(",")[1]) <= 0.7 for row in rows)
 
 
 @pytest.mark.parametrize("args, expect", [
