@@ -33,7 +33,7 @@ Executor::Executor(ExecutorConfig config) : backend_(config.backend), partition_
   }
   threads_ = config.threads > 0 ? config.threads : available_cpus();
   impl_ = std::make_unique<Impl>(threads_);
-  if (partition_ == Partition::owner) impl_->pinning = std::make_unique<PinningObserver>(impl_->arena, allowed_cpus());
+  if (partition_ == Partition::owner) impl_->cpus = allowed_cpus();
 }
 
 Executor::~Executor() = default;
@@ -50,17 +50,24 @@ std::vector<int> allowed_cpus() {
   return cpus;
 }
 
-void PinningObserver::on_scheduler_entry(bool worker) {
+namespace {
+// Pins the calling worker thread to `cpu`, once per thread and CPU (a thread-local remembers it): the
+// first task a worker runs in an owner-partitioned pass pins it. Best effort: a refusal leaves it
+// unpinned. The calling (external) thread, arena slot 0, is never pinned: its affinity is the
+// caller's business.
+void pin_worker(int cpu) {
 #ifdef __linux__
-  if (!worker || cpus_.empty()) return;
-  const int slot = tbb::this_task_arena::current_thread_index();
-  if (slot < 0) return;
+  thread_local int pinned = -1;
+  if (pinned == cpu) return;
   cpu_set_t set;
   CPU_ZERO(&set);
-  CPU_SET(cpus_[static_cast<std::size_t>(slot) % cpus_.size()], &set);
-  sched_setaffinity(0, sizeof set, &set);  // best effort: a refusal leaves the thread unpinned
+  CPU_SET(cpu, &set);
+  if (sched_setaffinity(0, sizeof set, &set) == 0) pinned = cpu;
+#else
+  static_cast<void>(cpu);
 #endif
 }
+}  // namespace
 
 int available_cpus() {
   if (const char* slurm = std::getenv("SLURM_CPUS_PER_TASK"); slurm && *slurm) {
@@ -106,6 +113,8 @@ void Executor::parallel_for(std::size_t n, std::size_t grain, FunctionRef<void(s
           0, t,
           [&](int) {
             const int me = tbb::this_task_arena::current_thread_index();
+            if (me > 0 && !impl_->cpus.empty())
+              pin_worker(impl_->cpus[static_cast<std::size_t>(me) % impl_->cpus.size()]);
             if (me >= 0 && me < t && !taken[static_cast<std::size_t>(me)].exchange(true)) return share(me);
             for (int k = 0; k < t; ++k)
               if (!taken[static_cast<std::size_t>(k)].exchange(true)) return share(k);
