@@ -27,6 +27,13 @@ message(STATUS "digests: 1 thread ${one}, 2 threads ${two}, serial ${serial}, on
 if(NOT one STREQUAL two OR NOT one STREQUAL serial OR NOT one STREQUAL fixed OR NOT one STREQUAL owner)
   message(FATAL_ERROR "state digest depends on the thread count or the partition: ${one} / ${two} / ${serial} / fixed ${fixed} / owner ${owner}")
 endif()
+# The hooke law (systems/laws/hooke.hpp) through the same pass: bitwise the same for 1 and 2
+# threads, and not Hertz's state.
+bench_digest(hooke_one --steps 40 --threads 1 --normal hooke --vchar 0.5)
+bench_digest(hooke_two --steps 40 --threads 2 --normal hooke --vchar 0.5)
+if(NOT hooke_one STREQUAL hooke_two OR hooke_one STREQUAL one)
+  message(FATAL_ERROR "hooke: digests ${hooke_one} (1 thread) / ${hooke_two} (2 threads), hertz ${one}")
+endif()
 if(one STREQUAL later)
   message(FATAL_ERROR "state digest unchanged by one more step: it does not see the state")
 endif()
