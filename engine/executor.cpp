@@ -9,7 +9,9 @@
 #include <oneapi/tbb/parallel_for.h>
 #include <oneapi/tbb/partitioner.h>
 
+#include <array>
 #include <atomic>
+#include <memory>
 #include <cstdlib>
 #include <vector>
 #include <string>
@@ -102,7 +104,11 @@ void Executor::parallel_for(std::size_t n, std::size_t grain, FunctionRef<void(s
     // first share left. Every share runs once, whoever runs it: the chunks, and so the results,
     // are the same.
     const int t = std::min<int>(threads_, static_cast<int>(chunks));
-    std::vector<std::atomic<bool>> taken(static_cast<std::size_t>(t));
+    // Claims on the stack up to 64 threads (no allocation per pass); more threads, on the heap.
+    std::array<std::atomic<bool>, 64> small{};
+    std::unique_ptr<std::atomic<bool>[]> large;
+    if (t > 64) large = std::make_unique<std::atomic<bool>[]>(static_cast<std::size_t>(t));
+    std::atomic<bool>* taken = large ? large.get() : small.data();
     const auto share = [&](int k) {
       const std::size_t c0 = chunks * static_cast<std::size_t>(k) / static_cast<std::size_t>(t);
       const std::size_t c1 = chunks * static_cast<std::size_t>(k + 1) / static_cast<std::size_t>(t);

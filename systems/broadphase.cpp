@@ -25,12 +25,6 @@ std::string not_finite_message(ParticleId id, const Vec3& x) {
          ", " + std::to_string(x[2]) + ") m is not finite: " + k_unstable_advice;
 }
 
-struct Candidate {
-  ParticleId id_j;
-  Image image;
-  std::uint32_t j;
-};
-
 bool key_less(ParticleId a_id, const Image& a_img, ParticleId b_id, const Image& b_img) {
   if (a_id != b_id) return a_id < b_id;
   return a_img < b_img;

@@ -269,7 +269,7 @@ def posterior(space, targets, surrogates, seed, n=1 << 16):
         order = np.argsort(x[:, k])
         cdf = np.cumsum(w[order])
         q05, q95 = (float(x[order, k][np.searchsorted(cdf, q)]) for q in (0.05, 0.95))
-        prior_std = (hi - lo) / math.sqrt(12.0) if not log_scale(lo, hi) else float(np.std(to_params(u, space)[:, k]))
+        prior_std = (hi - lo) / math.sqrt(12.0) if not log_scale(lo, hi) else float(np.std(x[:, k]))
         out[key] = dict(mean=float(mean[k]), std=float(std[k]), q05=q05, q95=q95, map=float(x[np.argmax(w), k]),
                         prior_std=prior_std, identified=bool(std[k] < 0.5 * prior_std))
     ess = float(1.0 / np.sum(w ** 2))
