@@ -98,7 +98,9 @@ def main():
                                 ("fixed", ["--threads", str(args.threads), "--partition", "fixed"]),
                                 ("owner", ["--threads", str(args.threads), "--partition", "owner"])):
                 out, _, foreign = timed([args.bench, "--steps", str(args.steps), "--json", *compat, *extra])
-                row[name] = json.loads(out)["particle_steps_per_s"]
+                report = json.loads(out)
+                row[name] = report["particle_steps_per_s"]
+                particles = report["particles"]  # the same scene LIGGGHTS runs
                 row[name + "_foreign"] = foreign
             if args.liggghts:
                 out, _, foreign = timed(["mpirun", "--allow-run-as-root", "-np", str(args.threads), "liggghts", "-in",
@@ -106,7 +108,7 @@ def main():
                                          "dense-20k.data", "-var", "nsteps", str(args.steps), "-var", "erate", "0",
                                          "-log", "none"], cwd=work)
                 loops = [float(line.split()[3]) for line in out.splitlines() if "Loop time" in line]
-                row["liggghts"] = 20000 * args.steps / loops[1]  # the timed run, between the two `run 0`
+                row["liggghts"] = particles * args.steps / loops[1]  # the timed run, between the two `run 0`
                 row["liggghts_foreign"] = foreign
             rows.append(row)
             print(" ".join(f"{k} {v:.4g}" if isinstance(v, float) else f"{k} {v}" for k, v in row.items()), flush=True)
