@@ -25,6 +25,7 @@ std::string_view component_name(Component c) {
     case Component::cell: return "cell";
     case Component::gather_index: return "gather_index";
     case Component::pair_constants: return "pair_constants";
+    case Component::halo: return "halo";
     case Component::stress: return "stress";
     case Component::count: break;
   }

@@ -36,6 +36,7 @@ enum class Component : std::uint8_t {
   gather_index,
   pair_constants,
   stress,  // the homogenizer's measured stress, read by the servo in the same step
+  halo,    // the owner partition's copies across its shares (systems/halo.hpp)
   count
 };
 inline constexpr std::size_t k_component_count = static_cast<std::size_t>(Component::count);

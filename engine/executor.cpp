@@ -9,6 +9,7 @@
 #include <oneapi/tbb/parallel_for.h>
 #include <oneapi/tbb/partitioner.h>
 
+#include <algorithm>
 #include <array>
 #include <atomic>
 #include <memory>
@@ -35,7 +36,6 @@ Executor::Executor(ExecutorConfig config) : backend_(config.backend), partition_
   }
   threads_ = config.threads > 0 ? config.threads : available_cpus();
   impl_ = std::make_unique<Impl>(threads_);
-  if (partition_ == Partition::owner) impl_->cpus = allowed_cpus();
 }
 
 Executor::~Executor() = default;
@@ -51,25 +51,6 @@ std::vector<int> allowed_cpus() {
 #endif
   return cpus;
 }
-
-namespace {
-// Pins the calling worker thread to `cpu`, once per thread and CPU (a thread-local remembers it): the
-// first task a worker runs in an owner-partitioned pass pins it. Best effort: a refusal leaves it
-// unpinned. The calling (external) thread, arena slot 0, is never pinned: its affinity is the
-// caller's business.
-void pin_worker(int cpu) {
-#ifdef __linux__
-  thread_local int pinned = -1;
-  if (pinned == cpu) return;
-  cpu_set_t set;
-  CPU_ZERO(&set);
-  CPU_SET(cpu, &set);
-  if (sched_setaffinity(0, sizeof set, &set) == 0) pinned = cpu;
-#else
-  static_cast<void>(cpu);
-#endif
-}
-}  // namespace
 
 int available_cpus() {
   if (const char* slurm = std::getenv("SLURM_CPUS_PER_TASK"); slurm && *slurm) {
@@ -100,36 +81,78 @@ void Executor::parallel_for(std::size_t n, std::size_t grain, FunctionRef<void(s
     for (std::size_t c = r.begin(); c < r.end(); ++c) body(c * grain, std::min(n, (c + 1) * grain));
   };
   if (partition_ == Partition::owner) {
-    // One share of chunks per thread; a task runs its own thread's share if no one has, else the
-    // first share left. Every share runs once, whoever runs it: the chunks, and so the results,
-    // are the same.
-    const int t = std::min<int>(threads_, static_cast<int>(chunks));
-    // Claims on the stack up to 64 threads (no allocation per pass); more threads, on the heap.
-    std::array<std::atomic<bool>, 64> small{};
-    std::unique_ptr<std::atomic<bool>[]> large;
-    if (t > 64) large = std::make_unique<std::atomic<bool>[]>(static_cast<std::size_t>(t));
-    std::atomic<bool>* taken = large ? large.get() : small.data();
-    const auto share = [&](int k) {
-      const std::size_t c0 = chunks * static_cast<std::size_t>(k) / static_cast<std::size_t>(t);
-      const std::size_t c1 = chunks * static_cast<std::size_t>(k + 1) / static_cast<std::size_t>(t);
-      for (std::size_t c = c0; c < c1; ++c) body(c * grain, std::min(n, (c + 1) * grain));
-    };
-    impl_->arena.execute([&] {
-      tbb::parallel_for(
-          0, t,
-          [&](int) {
-            const int me = tbb::this_task_arena::current_thread_index();
-            if (me > 0 && !impl_->cpus.empty())
-              pin_worker(impl_->cpus[static_cast<std::size_t>(me) % impl_->cpus.size()]);
-            if (me >= 0 && me < t && !taken[static_cast<std::size_t>(me)].exchange(true)) return share(me);
-            for (int k = 0; k < t; ++k)
-              if (!taken[static_cast<std::size_t>(k)].exchange(true)) return share(k);
-          },
-          tbb::static_partitioner());
-    });
+    parallel_for_shares(shares(n, grain), grain, body);
     return;
   }
   impl_->arena.execute([&] {
+    if (partition_ == Partition::fixed)
+      tbb::parallel_for(tbb::blocked_range<std::size_t>(0, chunks, 1), run, tbb::static_partitioner());
+    else
+      tbb::parallel_for(tbb::blocked_range<std::size_t>(0, chunks, 1), run, tbb::simple_partitioner());
+  });
+}
+
+Executor::Shares Executor::shares(std::size_t n, std::size_t grain) const {
+  const std::size_t align = std::clamp<std::size_t>(grain, 1, k_share_align);
+  const std::size_t units = (n + align - 1) / align;
+  Shares out;
+  out.count = partition_ == Partition::owner
+                  ? std::max<std::size_t>(1, std::min({static_cast<std::size_t>(threads_), units, k_max_shares}))
+                  : 1;
+  for (std::size_t k = 0; k < out.count; ++k) out.bounds[k] = std::min(n, units * k / out.count * align);
+  out.bounds[out.count] = n;
+  return out;
+}
+
+void Executor::run_owned(int t, FunctionRef<void(int)> share) {
+  // A task runs its own thread's share if no one has, else the first share left. Every share runs
+  // once, whoever runs it: the chunks, and so the results, are the same.
+  std::array<std::atomic<bool>, k_max_shares> taken{};
+  impl_->arena.execute([&] {
+    tbb::parallel_for(
+        0, t,
+        [&](int) {
+          const int me = tbb::this_task_arena::current_thread_index();
+          if (me >= 0 && me < t && !taken[static_cast<std::size_t>(me)].exchange(true)) return share(me);
+          for (int k = 0; k < t; ++k)
+            if (!taken[static_cast<std::size_t>(k)].exchange(true)) return share(k);
+        },
+        tbb::static_partitioner());
+  });
+}
+
+void Executor::parallel_for_shares(const Shares& cut, std::size_t grain,
+                                   FunctionRef<void(std::size_t, std::size_t)> body) {
+  grain = std::max<std::size_t>(grain, 1);
+  SANDCELL_ASSERT(cut.count >= 1 && cut.count <= k_max_shares, "parallel_for_shares: bad share count");
+  const auto chunks_of = [&](std::size_t k) {
+    return (cut.bounds[k + 1] - cut.bounds[k] + grain - 1) / grain;
+  };
+  if (partition_ == Partition::owner && backend_ != Backend::serial && cut.count > 1) {
+    run_owned(static_cast<int>(cut.count), [&](int k) {
+      const std::size_t end = cut.bounds[k + 1];
+      for (std::size_t b = cut.bounds[k]; b < end; b += grain) body(b, std::min(end, b + grain));
+    });
+    return;
+  }
+  // One pool of chunks: chunk c of the list is the c-th chunk counting share by share.
+  std::array<std::size_t, k_max_shares + 1> first{};  // first chunk of each share
+  for (std::size_t k = 0; k < cut.count; ++k) first[k + 1] = first[k] + chunks_of(k);
+  const std::size_t chunks = first[cut.count];
+  const auto run_chunk = [&](std::size_t c) {
+    const std::size_t k = static_cast<std::size_t>(std::upper_bound(first.begin(), first.begin() + cut.count + 1, c) -
+                                                   first.begin()) - 1;
+    const std::size_t b = cut.bounds[k] + (c - first[k]) * grain;
+    body(b, std::min(cut.bounds[k + 1], b + grain));
+  };
+  if (backend_ == Backend::serial || chunks <= 1) {
+    for (std::size_t c = 0; c < chunks; ++c) run_chunk(c);
+    return;
+  }
+  impl_->arena.execute([&] {
+    const auto run = [&](const tbb::blocked_range<std::size_t>& r) {
+      for (std::size_t c = r.begin(); c < r.end(); ++c) run_chunk(c);
+    };
     if (partition_ == Partition::fixed)
       tbb::parallel_for(tbb::blocked_range<std::size_t>(0, chunks, 1), run, tbb::static_partitioner());
     else

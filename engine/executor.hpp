@@ -17,22 +17,22 @@ namespace sandcell {
 
 enum class Backend { serial, tbb };
 
-/// How parallel_for hands its chunks to the threads (the chunks themselves, and so every result,
-/// are the same either way).
+/// How parallel_for hands its chunks to the threads (every result is the same either way).
 enum class Partition {
-  dynamic,  // work stealing, one chunk at a time: balances uneven chunks and a core slowed by others
-  fixed,    // each thread takes the same contiguous share of the chunks every pass (TBB
-            // static_partitioner): a thread keeps working on the same particles and pairs
-  owner,    // the chunks cut into one contiguous share per thread, share k run by the arena's thread k
-            // whenever it is there to take it (the others take what is left), and the worker threads
-            // pinned each to one CPU of the process's mask: every pass, a thread and its core keep the
-            // same particles and pairs, so only the boundary between shares moves between caches
+  owner,    // default: the range cut into one contiguous share per thread (Executor::shares), share k
+            // run by the arena's thread k whenever it is there to take it (the others take what is
+            // left): every pass, a thread keeps the same particles and the pairs of those particles,
+            // and what crosses between shares goes through the contact pass's halo
+            // (systems/halo.hpp), so a core reads another's data only as packed copies
+  dynamic,  // work stealing, one chunk at a time: balances uneven chunks and a core slowed by others,
+            // but a thread's particles and pairs change from pass to pass
+  fixed,    // TBB's static_partitioner over the chunks (no halo)
 };
 
 struct ExecutorConfig {
   Backend backend = Backend::tbb;
   int threads = 0;  // 0: available_cpus(); ignored by the serial backend (always 1)
-  Partition partition = Partition::dynamic;
+  Partition partition = Partition::owner;
 };
 
 /// The CPUs this process may use: SLURM_CPUS_PER_TASK inside a Slurm job step when it is a positive
@@ -55,6 +55,35 @@ class Executor {
 
   /// Calls body(begin, end) for consecutive chunks of `grain` indices covering [0, n).
   void parallel_for(std::size_t n, std::size_t grain, FunctionRef<void(std::size_t, std::size_t)> body);
+
+  /// Most shares the owner partition cuts (more threads than this: the others take what is left).
+  static constexpr std::size_t k_max_shares = 256;
+  /// The owner partition cuts its shares at multiples of min(grain, k_share_align), so that the
+  /// particle passes of different grains (256, 1024) cut the particles in the same places, and the
+  /// shares differ by less than k_share_align items.
+  static constexpr std::size_t k_share_align = 128;
+
+  /// Contiguous shares of an index range, one per thread: share k is [bounds[k], bounds[k+1]).
+  struct Shares {
+    std::size_t count = 0;
+    std::array<std::size_t, k_max_shares + 1> bounds{};
+  };
+
+  /// The shares in which the owner partition's parallel_for(n, grain) cuts [0, n): one per thread,
+  /// equal to within min(grain, k_share_align), each cut into chunks of `grain` from its own start.
+  /// Under the other partitions, one share.
+  /// A pass over another index space (pairs listed by their first particle) can map these bounds
+  /// into its own and run them with parallel_for_shares, so that a thread keeps the particles it
+  /// integrates and the pairs of those particles on its own core.
+  Shares shares(std::size_t n, std::size_t grain) const;
+
+  /// Like parallel_for, over the shares of `shares` (ascending bounds), each cut into chunks of
+  /// `grain` counted from its own first index. Under Partition::owner share k runs on thread k; under
+  /// the others every chunk goes to the common pool. The chunk boundaries depend on the shares: a
+  /// body whose result per index does not depend on where its chunk begins gives the same results
+  /// whatever the shares.
+  void parallel_for_shares(const Shares& shares, std::size_t grain,
+                           FunctionRef<void(std::size_t, std::size_t)> body);
 
   /// Maximum number of partials of a reduction; the chunk size grows past `grain` to respect it.
   static constexpr std::size_t k_max_partials = 128;
@@ -88,9 +117,12 @@ class Executor {
 
  private:
   Backend backend_;
-  Partition partition_ = Partition::dynamic;
+  Partition partition_ = Partition::owner;
   int threads_;
   std::unique_ptr<Impl> impl_;
+  // Runs share(k) for k in [0, t) under the owner partition: share k on the arena's thread k when
+  // it comes to take it, each share exactly once.
+  void run_owned(int t, FunctionRef<void(int)> share);
 };
 
 }  // namespace sandcell

@@ -23,7 +23,6 @@ struct Executor::Impl {
         arena(threads) {
     arena.initialize();
   }
-  std::vector<int> cpus;  // Partition::owner: the CPUs of the affinity mask, worker k pinned to cpus[k % size]
 };
 
 }  // namespace sandcell

@@ -3,6 +3,8 @@
 #include "systems/laws/mindlin.hpp"
 #include "systems/laws/normal_laws.hpp"
 #include "systems/laws/rolling.hpp"
+#include "systems/halo.hpp"
+#include "systems/integrate.hpp"
 #include "systems/pair_list.hpp"
 
 #include "engine/assert.hpp"
@@ -10,6 +12,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <limits>
 #include <stdexcept>
 #include <string>
 #include <type_traits>
@@ -72,9 +75,14 @@ struct alignas(64) Block {
 struct PassData {
   const std::uint32_t* __restrict pi;
   const std::uint32_t* __restrict pj;
+  const std::uint32_t* __restrict pjh;  // j, or n + ghost slot (Halo); pj without a halo
   const Vec3* __restrict x;
   const Vec3* __restrict v;
   const Vec3* __restrict w;
+  const Vec3* gx;  // ghost copies of x, v, w (Halo); x, v, w without a halo
+  const Vec3* gv;
+  const Vec3* gw;
+  std::uint32_t n_own;  // pjh below this indexes x, v, w; above, the ghosts (no halo: the maximum)
   const double* __restrict mass;
   const std::uint32_t* __restrict material;
   const double* __restrict r_star;
@@ -135,9 +143,14 @@ PassData bind_pass(const Model& model, State& state, Scratch& scratch) {
 
   PassData d{pairs.i.data(),
              pairs.j.data(),
+             pairs.j.data(),
              state.read<Component::particle_position>().data(),
              state.read<Component::particle_velocity>().data(),
              state.read<Component::particle_angular_velocity>().data(),
+             nullptr,
+             nullptr,
+             nullptr,
+             std::numeric_limits<std::uint32_t>::max(),
              state.read<Component::particle_mass>().data(),
              state.read<Component::particle_material>().data(),
              constants.r_star.data(),
@@ -160,6 +173,9 @@ PassData bind_pass(const Model& model, State& state, Scratch& scratch) {
              cell.rate,
              model.dt,
              characteristic_velocity(model.contact)};
+  d.gx = d.x;
+  d.gv = d.v;
+  d.gw = d.w;
   // The product img * L exactly as per pair.
   for (int c = 0; c < 27; ++c) {
     const Image img{static_cast<std::int8_t>(c % 3 - 1), static_cast<std::int8_t>(c / 3 % 3 - 1),
@@ -170,11 +186,21 @@ PassData bind_pass(const Model& model, State& state, Scratch& scratch) {
 }
 
 // The pass over one chunk of pairs, block by block, with the laws composed at compile time.
-template <class Normal, class Tangential, RollingModel Roll, bool Affine, bool Update>
+template <class Normal, class Tangential, RollingModel Roll, bool Affine, bool Update, bool Ghosts>
 struct ContactKernel {
   static constexpr bool rolling_history = Roll == RollingModel::epsd2 || Roll == RollingModel::epsd;
+  static constexpr bool update = Update;
   PassData d;
   RollingEvaluator<Roll, Update> roll;
+
+  // Particle j's entry of a per-particle array, or with a halo of its ghost copy (a select, not a
+  // branch; compiled only into the kernels that run with a halo).
+  const Vec3& of_j(const Vec3* own, const Vec3* ghost, std::uint32_t jh) const {
+    if constexpr (Ghosts)
+      return *(jh < d.n_own ? own + jh : ghost + (jh - d.n_own));
+    else
+      return own[jh];
+  }
 
   // Phase 1: gather. With one material the pair constants are the same for every pair and
   // neither loaded nor stored per pair (the common case, compiled as its own loop).
@@ -182,13 +208,14 @@ struct ContactKernel {
   void gather(Block& blk, std::size_t k0, std::size_t nb) const {
     for (std::size_t t = 0; t < nb; ++t) {
       const std::size_t k = k0 + t;
-      const std::uint32_t i = d.pi[k], j = d.pj[k];
+      const std::uint32_t i = d.pi[k], jh = d.pjh[k];
       const Vec3& s = d.shift[d.image_code[k]];
-      blk.rx[t] = d.x[i][0] - d.x[j][0] - s[0];
-      blk.ry[t] = d.x[i][1] - d.x[j][1] - s[1];
-      blk.rz[t] = d.x[i][2] - d.x[j][2] - s[2];
+      const Vec3& xj = of_j(d.x, d.gx, jh);
+      blk.rx[t] = d.x[i][0] - xj[0] - s[0];
+      blk.ry[t] = d.x[i][1] - xj[1] - s[1];
+      blk.rz[t] = d.x[i][2] - xj[2] - s[2];
       if constexpr (!OneMaterial) {
-        const PairMaterial& mat = d.pair_mat[d.material[i] * d.n_mat + d.material[j]];
+        const PairMaterial& mat = d.pair_mat[d.material[i] * d.n_mat + d.material[d.pj[k]]];
         blk.mat[t] = &mat;
         blk.e_star[t] = mat.e_star;
         blk.g_star[t] = mat.g_star;
@@ -197,8 +224,8 @@ struct ContactKernel {
       // Phase 3 reads these per pair inside a long chain of arithmetic; fetching them here
       // overlaps their cache misses across the block. Only the j side: i changes every ~4
       // pairs and walks the arrays in order, which the hardware prefetcher follows.
-      __builtin_prefetch(&d.v[j]);
-      __builtin_prefetch(&d.w[j]);
+      __builtin_prefetch(&of_j(d.v, d.gv, jh));
+      __builtin_prefetch(&of_j(d.w, d.gw, jh));
     }
   }
 
@@ -262,7 +289,7 @@ struct ContactKernel {
       }
       return;
     }
-    const std::uint32_t i = d.pi[k], j = d.pj[k];
+    const std::uint32_t i = d.pi[k], j = d.pj[k], jh = d.pjh[k];
     const Vec3 r(blk.rx[t], blk.ry[t], blk.rz[t]);
     PairKinematics c;
     c.n = r * blk.inv_dist[t];
@@ -270,10 +297,10 @@ struct ContactKernel {
     c.r_star = d.r_star[k];
     c.c_i = d.r_i[k] - 0.5 * c.overlap;
     c.c_j = d.r_j[k] - 0.5 * c.overlap;
-    c.v_rel = d.v[i] - d.v[j];
+    c.v_rel = d.v[i] - of_j(d.v, d.gv, jh);
     if constexpr (Affine) c.v_rel += d.rate.cwiseProduct(r);
     c.w_i = d.w[i];
-    c.w_j = d.w[j];
+    c.w_j = of_j(d.w, d.gw, jh);
     const PairMaterial& mat = d.n_mat == 1 ? d.pair_mat[0] : *blk.mat[t];
     const double k_n = blk.k_n[t], k_t = blk.k_t[t], gamma_n = blk.gamma_n[t];
     const double v_n = c.v_rel.dot(c.n);
@@ -335,21 +362,93 @@ struct ContactKernel {
   }
 };
 
-template <class Normal, class Tangential, RollingModel Roll, bool Affine, bool Update>
-void contact_loop(const Model& model, State& state, Scratch& scratch, Executor& exec) {
-  using Kernel = ContactKernel<Normal, Tangential, Roll, Affine, Update>;
-  const Kernel kernel{bind_pass<Kernel::rolling_history>(model, state, scratch),
-                      RollingEvaluator<Roll, Update>{model.dt, model.contact.rolling_damping}};
+// Under the owner partition with more than one share the pairs are cut where the particle passes
+// cut the particles, and what crosses a cut goes through the halo (systems/halo.hpp): the ghosts
+// are copied first, each share by the thread that owns its particles, then each pass chunk copies
+// its crossing pairs' force and torque on j into the slots the gather reads. Each pair's result
+// does not depend on its chunk nor on where it reads j from, so the results are the same for any
+// shares; without a halo, one share: the plain pass.
+Halo& prepare_halo(const State& state, Scratch& scratch, const Executor& exec) {
+  Halo& halo = scratch.write<Halo>();
+  const std::size_t n = state.particles.size(), m = state.contacts.pairs.size();
+  const Executor::Shares particles = exec.shares(n, k_particle_grain);
+  if (particles.count == 1) {
+    halo.active = false;
+    halo.n = n;
+    halo.m = m;
+    return halo;
+  }
+  const PairConstants& constants = scratch.read<PairConstants>();
+  if (halo.generation != constants.generation || halo.n != n || halo.m != m ||
+      halo.particles.count != particles.count ||
+      !std::equal(particles.bounds.begin(), particles.bounds.begin() + particles.count + 1, halo.particles.bounds.begin()))
+    rebuild_halo(state.contacts.pairs, scratch.read<GatherIndex>(), particles, k_block, constants.generation, halo);
+  return halo;
+}
+
+// The pass over the shares, each chunk followed by the copy of its crossing pairs' outputs to the
+// halo's slots (when there is a halo).
+template <class Kernel>
+void run_kernel(const Kernel& kernel, const Executor::Shares& shares, Halo* h, Executor& exec) {
+  const auto copy_slots = [h](const PassData& d, std::size_t b, std::size_t e) {
+    if (!h) return;
+    auto q = std::lower_bound(h->slot_pair.begin(), h->slot_pair.end(), static_cast<std::uint32_t>(b));
+    for (; q != h->slot_pair.end() && *q < e; ++q) {
+      const std::size_t slot = h->slot_of[static_cast<std::size_t>(q - h->slot_pair.begin())];
+      h->sf[slot] = d.force[*q];
+      h->st[slot] = d.torque_j[*q];
+    }
+  };
   // `flatten` inlines the kernel and the laws' small Eigen operations into the loop: left to GCC's
   // heuristics, composing the laws as types kept one of them out of line, +7.7 % instructions
   // (callgrind). Only the stepping pass, and not under a sanitizer: there it multiplies the
   // instrumented code, and compiling this file under ASan took 11 min and 7.5 GB.
-  if constexpr (Update && !k_sanitized) {
-    exec.parallel_for(state.contacts.pairs.size(), k_contact_grain,
-                      [kernel](std::size_t b, std::size_t e) __attribute__((flatten)) { kernel.chunk(b, e); });
+  if constexpr (Kernel::update && !k_sanitized) {
+    exec.parallel_for_shares(shares, k_contact_grain,
+                             [&kernel, copy_slots](std::size_t b, std::size_t e) __attribute__((flatten)) {
+                               kernel.chunk(b, e);
+                               copy_slots(kernel.d, b, e);
+                             });
   } else {
-    exec.parallel_for(state.contacts.pairs.size(), k_contact_grain,
-                      [kernel](std::size_t b, std::size_t e) { kernel.chunk(b, e); });
+    exec.parallel_for_shares(shares, k_contact_grain, [&kernel, copy_slots](std::size_t b, std::size_t e) {
+      kernel.chunk(b, e);
+      copy_slots(kernel.d, b, e);
+    });
+  }
+}
+
+template <class Normal, class Tangential, RollingModel Roll, bool Affine, bool Update>
+void contact_loop(const Model& model, State& state, Scratch& scratch, Executor& exec) {
+  constexpr bool rolling_history = Roll == RollingModel::epsd2 || Roll == RollingModel::epsd;
+  PassData d = bind_pass<rolling_history>(model, state, scratch);
+  const RollingEvaluator<Roll, Update> roll{model.dt, model.contact.rolling_damping};
+  Halo& halo = prepare_halo(state, scratch, exec);
+  if (!halo.active) {
+    Executor::Shares all;
+    all.count = 1;
+    all.bounds[1] = state.contacts.pairs.size();
+    run_kernel(ContactKernel<Normal, Tangential, Roll, Affine, Update, false>{d, roll}, all, nullptr, exec);
+    return;
+  }
+  if constexpr (!Update) {
+    // The setup pass reads j in place (the same values): no kernels with ghosts compiled for it.
+    run_kernel(ContactKernel<Normal, Tangential, Roll, Affine, Update, false>{d, roll}, halo.pairs, &halo, exec);
+  } else {
+    exec.parallel_for_shares(halo.exports, std::numeric_limits<std::size_t>::max() / 2,
+                             [&halo, &d](std::size_t b, std::size_t e) {
+                               for (std::size_t q = b; q < e; ++q) {
+                                 const std::uint32_t g = halo.export_ghost[q], p = halo.ghost_of[g];
+                                 halo.gx[g] = d.x[p];
+                                 halo.gv[g] = d.v[p];
+                                 halo.gw[g] = d.w[p];
+                               }
+                             });
+    d.pjh = halo.pj.data();
+    d.gx = halo.gx.data();
+    d.gv = halo.gv.data();
+    d.gw = halo.gw.data();
+    d.n_own = static_cast<std::uint32_t>(halo.n);
+    run_kernel(ContactKernel<Normal, Tangential, Roll, Affine, Update, true>{d, roll}, halo.pairs, &halo, exec);
   }
 }
 

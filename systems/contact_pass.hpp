@@ -30,9 +30,10 @@ struct ContactPass {
   static constexpr ComponentMask reads =
       mask_of({Component::contact_pairs, Component::particle_position, Component::particle_velocity,
                Component::particle_angular_velocity, Component::particle_mass, Component::particle_material,
-               Component::cell, Component::pair_constants});
+               Component::cell, Component::pair_constants, Component::gather_index});
   static constexpr ComponentMask writes =
-      mask_of({Component::contact_forces, Component::contact_tangential, Component::contact_rolling});
+      mask_of({Component::contact_forces, Component::contact_tangential, Component::contact_rolling,
+               Component::halo});
   static void run(const Model& model, State& state, Scratch& scratch, Executor& exec);
   /// Checks the laws' names and parameters (std::invalid_argument naming the key); allocates the
   /// rolling history only for the rolling laws that keep one (epsd2, epsd).

@@ -14,7 +14,8 @@ namespace sandcell {
 
 struct ForceGather {
   static constexpr std::string_view name = "force_gather";
-  static constexpr ComponentMask reads = mask_of({Component::contact_forces, Component::gather_index});
+  static constexpr ComponentMask reads =
+      mask_of({Component::contact_forces, Component::gather_index, Component::halo});
   static constexpr ComponentMask writes = mask_of({Component::particle_force, Component::particle_torque});
   static void run(const Model& model, State& state, Scratch& scratch, Executor& exec);
   /// The sums of the initial configuration's forces (the same pass).

@@ -319,7 +319,7 @@ static int bench_main(int argc, char** argv) {
   int threads = 0;
   double deform = 0.0;
   bool json = false, serial = false, costs = false, scaling = false, probe = false;
-  Partition partition = Partition::dynamic;
+  Partition partition = Partition::owner;
   int rounds = 3;
   long sort_interval = -1;
   Model model;
@@ -392,7 +392,7 @@ static int bench_main(int argc, char** argv) {
     } else if (arg == "--help" || arg == "-h") {
       std::printf(
           "usage: dem-bench [--scene FILE] [--steps N] [--threads T] [--deform RATE] [--rolling none|epsd2|epsd|cdt]\n"
-          "                 [--tangential history|incremental] [--normal hertz|hooke [--vchar V]] [--compat] [--sort STEPS] [--serial] [--partition dynamic|fixed|owner] [--json]\n"
+          "                 [--tangential history|incremental] [--normal hertz|hooke [--vchar V]] [--compat] [--sort STEPS] [--serial] [--partition owner|dynamic|fixed] [--json]\n"
           "       dem-bench --costs [--scene FILE] [--steps N] [--threads T] [--rounds R]\n"
           "       dem-bench --probe [--threads T]   (the machine alone: register-only scaling, ping-pong)\n"
           "       dem-bench --scaling [--scene FILE] [--steps N] [--threads T] [--rounds R] [--deform RATE] [--partition P] [--probe] [--json]\n");

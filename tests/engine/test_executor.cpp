@@ -4,6 +4,7 @@
 
 #include <doctest/doctest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdlib>
 #include <cstring>
@@ -15,22 +16,68 @@
 
 using namespace sandcell;
 
-TEST_CASE("parallel_for visits every index exactly once, in chunks fixed by n and grain") {
+TEST_CASE("parallel_for visits every index exactly once, in chunks of the grain within each share") {
   for (Partition partition : {Partition::dynamic, Partition::fixed, Partition::owner})
     for (int threads : {1, 2, 3, 8}) {
       CAPTURE(static_cast<int>(partition));
+      CAPTURE(threads);
       Executor exec({Backend::tbb, threads, partition});
       for (std::size_t n : {0u, 1u, 7u, 1000u, 4097u}) {
+        const Executor::Shares shares = exec.shares(n, 64);
+        // One share but under the owner partition, where there is one per thread (at most one per
+        // 64 indices), ascending, on multiples of the grain (64 < k_share_align), equal to within it.
+        const std::size_t expected = partition == Partition::owner
+                                         ? std::max<std::size_t>(1, std::min<std::size_t>(threads, (n + 63) / 64))
+                                         : 1;
+        CHECK(shares.count == expected);
+        CHECK(shares.bounds[0] == 0);
+        CHECK(shares.bounds[shares.count] == n);
+        for (std::size_t k = 0; k < shares.count; ++k) {
+          CHECK(shares.bounds[k] <= shares.bounds[k + 1]);
+          CHECK(shares.bounds[k] % 64 == 0);
+          CHECK(shares.bounds[k + 1] - shares.bounds[k] <= ((n + 63) / 64 / shares.count + 1) * 64);
+        }
         std::vector<int> hits(n, 0);
         exec.parallel_for(n, 64, [&](std::size_t b, std::size_t e) {
-          // Chunk boundaries are multiples of the grain, whatever the thread count.
+          // A chunk is the grain, or what is left of its share.
+          bool share_end = false;
+          for (std::size_t k = 1; k <= shares.count; ++k) share_end |= e == shares.bounds[k];
           CHECK(b % 64 == 0);
-          CHECK((e == n || e - b == 64));
+          CHECK((e - b == 64 || share_end));
           for (std::size_t k = b; k < e; ++k) ++hits[k];
         });
         for (std::size_t k = 0; k < n; ++k) REQUIRE(hits[k] == 1);
       }
     }
+}
+
+TEST_CASE("parallel_for_shares visits every index of any ascending shares once, chunked from each share's start") {
+  Executor::Shares shares;
+  shares.count = 4;
+  shares.bounds[0] = 0;
+  shares.bounds[1] = 5;  // a share shorter than the grain
+  shares.bounds[2] = 5;  // an empty share
+  shares.bounds[3] = 300;
+  shares.bounds[4] = 1001;
+  for (Partition partition : {Partition::dynamic, Partition::fixed, Partition::owner})
+    for (int threads : {1, 2, 4, 8}) {
+      CAPTURE(static_cast<int>(partition));
+      CAPTURE(threads);
+      Executor exec({Backend::tbb, threads, partition});
+      std::vector<int> hits(1001, 0);
+      exec.parallel_for_shares(shares, 100, [&](std::size_t b, std::size_t e) {
+        std::size_t k = 0;
+        while (!(b >= shares.bounds[k] && b < shares.bounds[k + 1])) ++k;
+        CHECK((b - shares.bounds[k]) % 100 == 0);
+        CHECK(e == std::min(shares.bounds[k + 1], b + 100));
+        for (std::size_t q = b; q < e; ++q) ++hits[q];
+      });
+      for (std::size_t q = 0; q < hits.size(); ++q) REQUIRE(hits[q] == 1);
+    }
+  Executor serial({Backend::serial, 1});
+  std::size_t visited = 0;
+  serial.parallel_for_shares(shares, 100, [&](std::size_t b, std::size_t e) { visited += e - b; });
+  CHECK(visited == 1001);
 }
 
 TEST_CASE("deterministic_reduce gives the same bits for the serial backend and 1, 2, 3, 8 threads, any partition") {

@@ -1,0 +1,105 @@
+// The owner partition's halo (systems/halo.hpp): what it maps, what it copies, and that a world
+// stepped through it is bitwise the world stepped without it.
+#include "components/contacts.hpp"
+#include "engine/world.hpp"
+#include "support/scenes.hpp"
+#include "systems/catalogue.hpp"
+#include "systems/halo.hpp"
+#include "systems/pair_list.hpp"
+
+#include <doctest/doctest.h>
+
+#include <set>
+
+using namespace sandcell;
+
+namespace {
+// A dense jammed lattice of 12^3 spheres (every lattice neighbour overlaps), velocities random, so
+// that pairs cross every share boundary and forces, torques and histories are all non-zero.
+State dense_scene(const Model& model) {
+  return test::jittered_lattice(model, 12, 1.0e-3, 0.52e-3, 0.56e-3, 0.01e-3, 0.05, 20.0, 91);
+}
+}  // namespace
+
+TEST_CASE("owner partition: the halo maps every crossing pair and copies exactly what the pass reads") {
+  Model model = test::quartz_model(2e-8, 0.1e-3);
+  model.contact.sort_interval = 10;  // Morton order, so that the shares are compact regions
+  const State start = dense_scene(model);
+  World serial(model, start, systems_for(model), ExecutorConfig{Backend::serial, 1});
+  serial.step(25);
+  for (int threads : {2, 3, 5}) {
+    CAPTURE(threads);
+    World w(model, start, systems_for(model), ExecutorConfig{Backend::tbb, threads, Partition::owner});
+    w.step(25);
+    // Bitwise the serial world: the halo moves copies, never changes a value or an order of sums.
+    CHECK(first_difference(w.state().particles, serial.state().particles) == "");
+    CHECK(first_difference(w.state().contacts, serial.state().contacts) == "");
+
+    const Halo& halo = w.scratch().own<Halo>();
+    const State& s = w.state();
+    const ContactPairs& pairs = s.contacts.pairs;
+    const std::size_t n = s.particles.size(), m = pairs.size();
+    REQUIRE(halo.active);
+    REQUIRE(halo.n == n);
+    REQUIRE(halo.m == m);
+    CHECK(halo.particles.count == static_cast<std::size_t>(threads));
+    // Every pair is in exactly one pair share, and (but for the fewer than 64 pairs of a block cut
+    // at a share boundary) its i is in the matching particle share.
+    std::size_t misplaced = 0, crossing = 0;
+    for (std::size_t k = 0; k < m; ++k) {
+      const std::size_t s_pair = share_of(halo.pairs, k);
+      if (share_of(halo.particles, pairs.i[k]) != s_pair) ++misplaced;
+      const std::uint32_t j = pairs.j[k], jh = halo.pj[k];
+      if (share_of(halo.particles, j) == s_pair) {
+        CHECK(jh == j);
+      } else {
+        ++crossing;
+        REQUIRE(jh >= n);
+        CHECK(halo.ghost_of[jh - n] == j);
+      }
+    }
+    CHECK(misplaced < 64 * (halo.particles.count - 1));
+    CHECK(crossing > 0);
+    // The ghosts hold this step's positions (taken after the drift; the closing kick changes only
+    // velocities), and each is exported by the share owning its particle.
+    for (std::size_t e = 0; e < halo.exports.count; ++e)
+      for (std::size_t q = halo.exports.bounds[e]; q < halo.exports.bounds[e + 1]; ++q)
+        CHECK(share_of(halo.particles, halo.ghost_of[halo.export_ghost[q]]) == e);
+    std::size_t stale = 0;
+    for (std::size_t g = 0; g < halo.ghost_of.size(); ++g)
+      if (halo.gx[g] != s.particles.position[halo.ghost_of[g]]) ++stale;
+    CHECK(stale == 0);
+    // Slots: one per pair whose j another share gathers, holding the pair's force and torque on j.
+    std::size_t slot_pairs = 0;
+    for (std::size_t k = 0; k < m; ++k)
+      if (share_of(halo.particles, pairs.j[k]) != share_of(halo.pairs, k)) ++slot_pairs;
+    CHECK(halo.slot_pair.size() == slot_pairs);
+    std::set<std::uint32_t> slots(halo.slot_of.begin(), halo.slot_of.end());
+    CHECK(slots.size() == halo.slot_of.size());
+    for (std::size_t q = 0; q < halo.slot_pair.size(); ++q) {
+      CHECK(halo.sf[halo.slot_of[q]] == s.contacts.forces.force[halo.slot_pair[q]]);
+      CHECK(halo.st[halo.slot_of[q]] == s.contacts.forces.torque_j[halo.slot_pair[q]]);
+    }
+    // The gather's entries: the index's, with exactly the slot pairs replaced by m + slot.
+    const GatherIndex& index = w.scratch().own<GatherIndex>();
+    std::size_t replaced = 0;
+    for (std::size_t q = 0; q < index.j_entry.size(); ++q) {
+      if (halo.j_entry[q] == index.j_entry[q]) continue;
+      ++replaced;
+      REQUIRE(halo.j_entry[q] >= m);
+    }
+    CHECK(replaced == slot_pairs);
+  }
+}
+
+TEST_CASE("only the owner partition with more than one thread builds a halo") {
+  Model model = test::quartz_model(2e-8, 0.1e-3);
+  const State start = dense_scene(model);
+  for (const ExecutorConfig cfg : {ExecutorConfig{Backend::tbb, 1, Partition::owner}, ExecutorConfig{Backend::serial, 4},
+                                   ExecutorConfig{Backend::tbb, 2, Partition::dynamic},
+                                   ExecutorConfig{Backend::tbb, 2, Partition::fixed}}) {
+    World w(model, start, systems_for(model), cfg);
+    w.step(3);
+    CHECK_FALSE(w.scratch().own<Halo>().active);
+  }
+}
