@@ -4,9 +4,9 @@
     probe      dem-bench --probe: T register-only FP chains against one, and the cache-line
                ping-pong between vCPUs 0 and 1 (what the machine allows, without any DEM code)
     one        dem-bench, 1 thread
-    dynamic    dem-bench, T threads, work-stealing partition (the default)
-    fixed      dem-bench, T threads, fixed partition (--partition fixed)
-    owner      dem-bench, T threads, owner partition, workers pinned (--partition owner)
+    owner      dem-bench, T threads, owner partition with its halo (the default)
+    dynamic    dem-bench, T threads, work-stealing partition (--partition dynamic)
+    fixed      dem-bench, T threads, TBB's static partition (--partition fixed)
     liggghts   LIGGGHTS on T MPI ranks (when installed and --liggghts), same scene
 
 each run timed by itself, with the CPU time other processes used meanwhile (from /proc/stat and
@@ -94,7 +94,7 @@ def main():
             p = json.loads(out)
             row.update(alu_ratio=p["alu_ratio"], pingpong_ns=p["pingpong_ns"], probe_foreign=foreign)
             for name, extra in (("one", ["--threads", "1"]),
-                                ("dynamic", ["--threads", str(args.threads)]),
+                                ("dynamic", ["--threads", str(args.threads), "--partition", "dynamic"]),
                                 ("fixed", ["--threads", str(args.threads), "--partition", "fixed"]),
                                 ("owner", ["--threads", str(args.threads), "--partition", "owner"])):
                 out, _, foreign = timed([args.bench, "--steps", str(args.steps), "--json", *compat, *extra])
@@ -133,6 +133,14 @@ def main():
         if args.liggghts:
             a = q(col(k) / col("liggghts"))
             print(f"  {k}/liggghts per round {a[0]:.2f} {a[1]:.2f} {a[2]:.2f}")
+    # The host's two placements of the vCPUs (docs/performance.md): near (a shared L3, ping-pong
+    # ~40 ns) and far (~190 ns); the probe runs at the start of its round.
+    far = col("pingpong_ns") > 120
+    for name, sel in (("near", ~far), ("far", far)):
+        if sel.any():
+            print(f"  {name} rounds ({sel.sum()}): median " + ", ".join(
+                f"{k} {np.median(col(k)[sel]) / 1e6:.2f}" for k in ["one", "dynamic", "fixed", "owner"]
+                + (["liggghts"] if args.liggghts else [])) + " M")
     a = q(col("alu_ratio"))
     print(f"  register-only {T}/1 ratio {a[0]:.2f} {a[1]:.2f} {a[2]:.2f}; ping-pong ns "
           + " ".join(f"{x:.0f}" for x in q(col('pingpong_ns'))))
