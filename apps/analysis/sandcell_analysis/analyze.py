@@ -86,7 +86,8 @@ from scipy import stats
 
 from .critical import detect_critical
 from .csl import csl_e, fit_csl
-from .dilatancy import dilatancy_g, dilatancy_li3d, dilatancy_series, fit_g_form, fit_li_dafalias
+from .dilatancy import (dilatancy_g, dilatancy_li3d, dilatancy_series, fit_g_form, fit_li_dafalias,
+                        slope_max_dilation)
 from .fitting import NAN
 from .m_theta import fit_m_theta
 from .reference import CRIT, STUDY
@@ -163,6 +164,9 @@ def analyze_tests(tests, opt):
         m = dil["mask"]
         t["min_d"] = float(np.min(dil["d"][m])) if np.any(m) else NAN
         t["eps1_min_d"] = float(t["eps1"][m][np.argmin(dil["d"][m])]) if np.any(m) else NAN
+        # The largest dilation rate against the axial strain, -d eps_v / d eps_1 (slopes over 1 %
+        # of eps_1): where b changes d eps_q / d eps_1, this and -min(d) can order the b apart.
+        t["max_dv_de1"] = slope_max_dilation(t["eps1"], t["eps_v"], t["eps1"])
         t["psi0"] = float(t["e"][0] - csl_e(t["p"][0], cpar["e_gamma"], cpar["lambda"],
                                             cpar["xi"]))
 
@@ -257,6 +261,8 @@ def evaluate_trends(tests, csl, mse, dpath, opt):
               lambda t: t["critical"]["point"]["q"] / 1e6, -1, "q_c (MPa)", only_used=True),
         trend("dilation_grows", "dilation grows with b", lambda t: -t["min_d"], +1,
               "max dilation rate -min(d)"),
+        trend("dilation_eps1_grows", "dilation against eps_1 grows with b (supplementary)",
+              lambda t: t["max_dv_de1"], +1, "max -d eps_v / d eps_1"),
         trend("final_dilation_grows", "final dilation grows with b (supplementary)",
               lambda t: -t["end"]["eps_v"], +1, "-eps_v at the end"),
     ]
@@ -535,7 +541,8 @@ def build_summary(tests, res, opt, files, skipped):
             "critical": t["critical"]["reached"], "used_in_fits": t["used"],
             "reasons": t["critical"]["reasons"], "checks": t["critical"]["checks"],
             "critical_point": t["critical"]["point"], "peak": t["peak"],
-            "min_d": t["min_d"], "eps1_min_d": t["eps1_min_d"], "eps_v_end": t["end"]["eps_v"],
+            "min_d": t["min_d"], "eps1_min_d": t["eps1_min_d"], "max_dv_de1": t["max_dv_de1"],
+            "eps_v_end": t["end"]["eps_v"],
             "psi0": t["psi0"], "dilatancy_points": int(np.sum(t["dil"]["mask"])),
         })
     opts = {k: getattr(opt, k) for k in ("window", "pre_strain", "min_points", "tol_eta", "tol_p",
