@@ -83,6 +83,7 @@ struct PassData {
   const Vec3* gv;
   const Vec3* gw;
   std::uint32_t n_own;  // pjh below this indexes x, v, w; above, the ghosts (no halo: the maximum)
+  const std::uint8_t* ghost_block;  // per block of k_block pairs, 1: some pair's j is a ghost (Halo)
   const double* __restrict mass;
   const std::uint32_t* __restrict material;
   const double* __restrict r_star;
@@ -151,6 +152,7 @@ PassData bind_pass(const Model& model, State& state, Scratch& scratch) {
              nullptr,
              nullptr,
              std::numeric_limits<std::uint32_t>::max(),
+             nullptr,
              state.read<Component::particle_mass>().data(),
              state.read<Component::particle_material>().data(),
              constants.r_star.data(),
@@ -193,10 +195,11 @@ struct ContactKernel {
   PassData d;
   RollingEvaluator<Roll, Update> roll;
 
-  // Particle j's entry of a per-particle array, or with a halo of its ghost copy (a select, not a
-  // branch; compiled only into the kernels that run with a halo).
+  // Particle j's entry of a per-particle array, or in a block with crossing pairs (G) of its ghost
+  // copy: a select, not a branch, compiled only into the blocks that need it (Halo::ghost_block).
+  template <bool G>
   const Vec3& of_j(const Vec3* own, const Vec3* ghost, std::uint32_t jh) const {
-    if constexpr (Ghosts)
+    if constexpr (G)
       return *(jh < d.n_own ? own + jh : ghost + (jh - d.n_own));
     else
       return own[jh];
@@ -204,13 +207,13 @@ struct ContactKernel {
 
   // Phase 1: gather. With one material the pair constants are the same for every pair and
   // neither loaded nor stored per pair (the common case, compiled as its own loop).
-  template <bool OneMaterial>
+  template <bool OneMaterial, bool G>
   void gather(Block& blk, std::size_t k0, std::size_t nb) const {
     for (std::size_t t = 0; t < nb; ++t) {
       const std::size_t k = k0 + t;
       const std::uint32_t i = d.pi[k], jh = d.pjh[k];
       const Vec3& s = d.shift[d.image_code[k]];
-      const Vec3& xj = of_j(d.x, d.gx, jh);
+      const Vec3& xj = of_j<G>(d.x, d.gx, jh);
       blk.rx[t] = d.x[i][0] - xj[0] - s[0];
       blk.ry[t] = d.x[i][1] - xj[1] - s[1];
       blk.rz[t] = d.x[i][2] - xj[2] - s[2];
@@ -224,8 +227,8 @@ struct ContactKernel {
       // Phase 3 reads these per pair inside a long chain of arithmetic; fetching them here
       // overlaps their cache misses across the block. Only the j side: i changes every ~4
       // pairs and walks the arrays in order, which the hardware prefetcher follows.
-      __builtin_prefetch(&of_j(d.v, d.gv, jh));
-      __builtin_prefetch(&of_j(d.w, d.gw, jh));
+      __builtin_prefetch(&of_j<G>(d.v, d.gv, jh));
+      __builtin_prefetch(&of_j<G>(d.w, d.gw, jh));
     }
   }
 
@@ -275,6 +278,7 @@ struct ContactKernel {
   // Phase 3, one pair: normal force, tangential and rolling laws, outputs. An open pair already
   // marked open is not written: its outputs are zero since it opened. Sets `changed` when the
   // pair's regime changed.
+  template <bool G>
   void visit(const Block& blk, std::size_t k0, std::size_t t, unsigned& changed) const {
     const std::size_t k = k0 + t;
     if (!(blk.overlap[t] > 0.0)) {
@@ -297,10 +301,10 @@ struct ContactKernel {
     c.r_star = d.r_star[k];
     c.c_i = d.r_i[k] - 0.5 * c.overlap;
     c.c_j = d.r_j[k] - 0.5 * c.overlap;
-    c.v_rel = d.v[i] - of_j(d.v, d.gv, jh);
+    c.v_rel = d.v[i] - of_j<G>(d.v, d.gv, jh);
     if constexpr (Affine) c.v_rel += d.rate.cwiseProduct(r);
     c.w_i = d.w[i];
-    c.w_j = of_j(d.w, d.gw, jh);
+    c.w_j = of_j<G>(d.w, d.gw, jh);
     const PairMaterial& mat = d.n_mat == 1 ? d.pair_mat[0] : *blk.mat[t];
     const double k_n = blk.k_n[t], k_t = blk.k_t[t], gamma_n = blk.gamma_n[t];
     const double v_n = c.v_rel.dot(c.n);
@@ -337,27 +341,39 @@ struct ContactKernel {
     }
   }
 
+  // One block of pairs, all three phases; G: the block has pairs whose j is a ghost.
+  template <bool G>
+  void block(Block& blk, std::size_t k0, std::size_t nb) const {
+    if (d.n_mat == 1) {
+      gather<true, G>(blk, k0, nb);
+      stiffness<true>(blk, k0, nb);
+    } else {
+      gather<false, G>(blk, k0, nb);
+      stiffness<false>(blk, k0, nb);
+    }
+    sort_block(k0, nb);
+    const std::size_t index = k0 / k_block;
+    unsigned changed = 0;
+    if (d.sorted[index]) {
+      const std::uint8_t* __restrict order = d.order + k0;
+      for (std::size_t u = 0; u < nb; ++u) visit<G>(blk, k0, order[u], changed);
+    } else {
+      for (std::size_t t = 0; t < nb; ++t) visit<G>(blk, k0, t, changed);  // no pair at a cap: array order
+    }
+    d.stale[index] = changed != 0;
+  }
+
   void chunk(std::size_t b, std::size_t e) const {
     Block blk;
     for (std::size_t k0 = b; k0 < e; k0 += k_block) {
       const std::size_t nb = std::min(k_block, e - k0);
-      if (d.n_mat == 1) {
-        gather<true>(blk, k0, nb);
-        stiffness<true>(blk, k0, nb);
-      } else {
-        gather<false>(blk, k0, nb);
-        stiffness<false>(blk, k0, nb);
+      if constexpr (Ghosts) {
+        if (d.ghost_block[k0 / k_block]) {
+          block<true>(blk, k0, nb);
+          continue;
+        }
       }
-      sort_block(k0, nb);
-      const std::size_t block = k0 / k_block;
-      unsigned changed = 0;
-      if (d.sorted[block]) {
-        const std::uint8_t* __restrict order = d.order + k0;
-        for (std::size_t u = 0; u < nb; ++u) visit(blk, k0, order[u], changed);
-      } else {
-        for (std::size_t t = 0; t < nb; ++t) visit(blk, k0, t, changed);  // no pair at a cap: array order
-      }
-      d.stale[block] = changed != 0;
+      block<false>(blk, k0, nb);
     }
   }
 };
@@ -448,6 +464,7 @@ void contact_loop(const Model& model, State& state, Scratch& scratch, Executor& 
     d.gv = halo.gv.data();
     d.gw = halo.gw.data();
     d.n_own = static_cast<std::uint32_t>(halo.n);
+    d.ghost_block = halo.ghost_block.data();
     run_kernel(ContactKernel<Normal, Tangential, Roll, Affine, Update, true>{d, roll}, halo.pairs, &halo, exec);
   }
 }

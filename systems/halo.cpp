@@ -12,7 +12,7 @@ namespace {
 constexpr std::uint32_t k_none = std::numeric_limits<std::uint32_t>::max();
 
 // Ghost slots in the order each share's pairs first read them; exports grouped by owner.
-void build_ghosts(const ContactPairs& pairs, Halo& halo) {
+void build_ghosts(const ContactPairs& pairs, std::size_t block, Halo& halo) {
   const std::size_t n = halo.n, shares = halo.particles.count;
   halo.pj.resize(halo.m);
   halo.stamp.assign(n, 0);
@@ -33,6 +33,9 @@ void build_ghosts(const ContactPairs& pairs, Halo& halo) {
       halo.pj[k] = static_cast<std::uint32_t>(n + halo.ghost_at[j]);
     }
   }
+  halo.ghost_block.assign((halo.m + block - 1) / block, 0);
+  for (std::size_t k = 0; k < halo.m; ++k)
+    if (halo.pj[k] >= n) halo.ghost_block[k / block] = 1;
   const std::size_t ghosts = halo.ghost_of.size();
   halo.exports = Executor::Shares{};
   halo.exports.count = shares;
@@ -95,7 +98,7 @@ void rebuild_halo(const ContactPairs& pairs, const GatherIndex& index, const Exe
     halo.pairs.bounds[s] =
         std::max(halo.pairs.bounds[s - 1], index.i_start[particles.bounds[s]] / pair_align * pair_align);
   halo.pairs.bounds[particles.count] = m;
-  build_ghosts(pairs, halo);
+  build_ghosts(pairs, pair_align, halo);
   build_slots(index, halo);
 }
 

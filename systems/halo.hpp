@@ -42,6 +42,7 @@ struct Halo {
   Executor::Shares pairs;         // -, the pair shares: pairs whose i a share owns (block-aligned)
   Executor::Shares exports;       // -, ranges of export_ghost by exporting share
   std::vector<std::uint32_t> pj;       // (m) -, j, or n + ghost slot for a pair whose j another share owns
+  std::vector<std::uint8_t> ghost_block;  // (m / 64 blocks) -, 1: a pair of the block reads a ghost
   std::vector<std::uint32_t> ghost_of;  // (ghosts) -, the particle each ghost slot copies
   std::vector<std::uint32_t> export_ghost;  // (ghosts) -, ghost slots grouped by the share owning their particle
   std::vector<Vec3> gx, gv, gw;         // (ghosts) m, m/s, rad/s: copies of position, velocity, angular velocity
@@ -55,7 +56,8 @@ struct Halo {
 };
 
 /// Builds the halo of `pairs` for the particle shares `particles` (inactive for one share).
-/// The pair shares' bounds are rounded down to multiples of `pair_align` (the pass's blocks).
+/// The pair shares' bounds are rounded down to multiples of `pair_align` (the pass's blocks), and
+/// ghost_block flags the blocks of `pair_align` pairs with a ghost.
 void rebuild_halo(const ContactPairs& pairs, const GatherIndex& index, const Executor::Shares& particles,
                   std::size_t pair_align, std::uint64_t generation, Halo& halo);
 

@@ -9,6 +9,7 @@
 
 #include <doctest/doctest.h>
 
+#include <algorithm>
 #include <set>
 
 using namespace sandcell;
@@ -60,6 +61,16 @@ TEST_CASE("owner partition: the halo maps every crossing pair and copies exactly
     }
     CHECK(misplaced < 64 * (halo.particles.count - 1));
     CHECK(crossing > 0);
+    // The blocks of 64 pairs the contact pass runs with ghosts are exactly those with one.
+    REQUIRE(halo.ghost_block.size() == (m + 63) / 64);
+    std::size_t ghost_blocks = 0;
+    for (std::size_t blk = 0; blk < halo.ghost_block.size(); ++blk) {
+      bool any = false;
+      for (std::size_t k = blk * 64; k < std::min(m, blk * 64 + 64); ++k) any |= halo.pj[k] >= n;
+      CHECK(static_cast<bool>(halo.ghost_block[blk]) == any);
+      ghost_blocks += any;
+    }
+    CHECK(ghost_blocks > 0);
     // The ghosts hold this step's positions (taken after the drift; the closing kick changes only
     // velocities), and each is exported by the share owning its particle.
     for (std::size_t e = 0; e < halo.exports.count; ++e)
