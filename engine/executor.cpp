@@ -125,9 +125,7 @@ void Executor::parallel_for_shares(const Shares& cut, std::size_t grain,
                                    FunctionRef<void(std::size_t, std::size_t)> body) {
   grain = std::max<std::size_t>(grain, 1);
   SANDCELL_ASSERT(cut.count >= 1 && cut.count <= k_max_shares, "parallel_for_shares: bad share count");
-  const auto chunks_of = [&](std::size_t k) {
-    return (cut.bounds[k + 1] - cut.bounds[k] + grain - 1) / grain;
-  };
+  const auto chunks_of = [&](std::size_t k) { return (cut.bounds[k + 1] - cut.bounds[k] + grain - 1) / grain; };
   if (partition_ == Partition::owner && backend_ != Backend::serial && cut.count > 1) {
     run_owned(static_cast<int>(cut.count), [&](int k) {
       const std::size_t end = cut.bounds[k + 1];
@@ -140,8 +138,8 @@ void Executor::parallel_for_shares(const Shares& cut, std::size_t grain,
   for (std::size_t k = 0; k < cut.count; ++k) first[k + 1] = first[k] + chunks_of(k);
   const std::size_t chunks = first[cut.count];
   const auto run_chunk = [&](std::size_t c) {
-    const std::size_t k = static_cast<std::size_t>(std::upper_bound(first.begin(), first.begin() + cut.count + 1, c) -
-                                                   first.begin()) - 1;
+    const std::size_t k =
+        static_cast<std::size_t>(std::upper_bound(first.begin(), first.begin() + cut.count + 1, c) - first.begin()) - 1;
     const std::size_t b = cut.bounds[k] + (c - first[k]) * grain;
     body(b, std::min(cut.bounds[k + 1], b + grain));
   };

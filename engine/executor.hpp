@@ -82,8 +82,7 @@ class Executor {
   /// the others every chunk goes to the common pool. The chunk boundaries depend on the shares: a
   /// body whose result per index does not depend on where its chunk begins gives the same results
   /// whatever the shares.
-  void parallel_for_shares(const Shares& shares, std::size_t grain,
-                           FunctionRef<void(std::size_t, std::size_t)> body);
+  void parallel_for_shares(const Shares& shares, std::size_t grain, FunctionRef<void(std::size_t, std::size_t)> body);
 
   /// Maximum number of partials of a reduction; the chunk size grows past `grain` to respect it.
   static constexpr std::size_t k_max_partials = 128;

@@ -82,7 +82,7 @@ struct PassData {
   const Vec3* gx;  // ghost copies of x, v, w (Halo); x, v, w without a halo
   const Vec3* gv;
   const Vec3* gw;
-  std::uint32_t n_own;  // pjh below this indexes x, v, w; above, the ghosts (no halo: the maximum)
+  std::uint32_t n_own;              // pjh below this indexes x, v, w; above, the ghosts (no halo: the maximum)
   const std::uint8_t* ghost_block;  // per block of k_block pairs, 1: some pair's j is a ghost (Halo)
   const double* __restrict mass;
   const std::uint32_t* __restrict material;
@@ -397,7 +397,8 @@ Halo& prepare_halo(const State& state, Scratch& scratch, const Executor& exec) {
   const PairConstants& constants = scratch.read<PairConstants>();
   if (halo.generation != constants.generation || halo.n != n || halo.m != m ||
       halo.particles.count != particles.count ||
-      !std::equal(particles.bounds.begin(), particles.bounds.begin() + particles.count + 1, halo.particles.bounds.begin()))
+      !std::equal(particles.bounds.begin(), particles.bounds.begin() + particles.count + 1,
+                  halo.particles.bounds.begin()))
     rebuild_halo(state.contacts.pairs, scratch.read<GatherIndex>(), particles, k_block, constants.generation, halo);
   return halo;
 }
@@ -420,11 +421,11 @@ void run_kernel(const Kernel& kernel, const Executor::Shares& shares, Halo* h, E
   // (callgrind). Only the stepping pass, and not under a sanitizer: there it multiplies the
   // instrumented code, and compiling this file under ASan took 11 min and 7.5 GB.
   if constexpr (Kernel::update && !k_sanitized) {
-    exec.parallel_for_shares(shares, k_contact_grain,
-                             [&kernel, copy_slots](std::size_t b, std::size_t e) __attribute__((flatten)) {
-                               kernel.chunk(b, e);
-                               copy_slots(kernel.d, b, e);
-                             });
+    exec.parallel_for_shares(
+        shares, k_contact_grain, [&kernel, copy_slots ](std::size_t b, std::size_t e) __attribute__((flatten)) {
+          kernel.chunk(b, e);
+          copy_slots(kernel.d, b, e);
+        });
   } else {
     exec.parallel_for_shares(shares, k_contact_grain, [&kernel, copy_slots](std::size_t b, std::size_t e) {
       kernel.chunk(b, e);

@@ -35,24 +35,24 @@ struct GatherIndex;
 
 struct Halo {
   static constexpr Component component = Component::halo;
-  bool active = false;            // built for more than one share
+  bool active = false;                           // built for more than one share
   std::uint64_t generation = ~std::uint64_t{0};  // -, PairConstants::generation it was built for
-  std::size_t n = 0, m = 0;       // -, particles and pairs it was built for
-  Executor::Shares particles;     // -, the particle shares (Executor::shares)
-  Executor::Shares pairs;         // -, the pair shares: pairs whose i a share owns (block-aligned)
-  Executor::Shares exports;       // -, ranges of export_ghost by exporting share
-  std::vector<std::uint32_t> pj;       // (m) -, j, or n + ghost slot for a pair whose j another share owns
-  std::vector<std::uint8_t> ghost_block;  // (m / 64 blocks) -, 1: a pair of the block reads a ghost
-  std::vector<std::uint32_t> ghost_of;  // (ghosts) -, the particle each ghost slot copies
-  std::vector<std::uint32_t> export_ghost;  // (ghosts) -, ghost slots grouped by the share owning their particle
-  std::vector<Vec3> gx, gv, gw;         // (ghosts) m, m/s, rad/s: copies of position, velocity, angular velocity
-  std::vector<std::uint32_t> j_entry;   // (m) -, GatherIndex::j_entry with a crossing pair's k replaced by m + slot
+  std::size_t n = 0, m = 0;                      // -, particles and pairs it was built for
+  Executor::Shares particles;                    // -, the particle shares (Executor::shares)
+  Executor::Shares pairs;                        // -, the pair shares: pairs whose i a share owns (block-aligned)
+  Executor::Shares exports;                      // -, ranges of export_ghost by exporting share
+  std::vector<std::uint32_t> pj;                 // (m) -, j, or n + ghost slot for a pair whose j another share owns
+  std::vector<std::uint8_t> ghost_block;         // (m / 64 blocks) -, 1: a pair of the block reads a ghost
+  std::vector<std::uint32_t> ghost_of;           // (ghosts) -, the particle each ghost slot copies
+  std::vector<std::uint32_t> export_ghost;       // (ghosts) -, ghost slots grouped by the share owning their particle
+  std::vector<Vec3> gx, gv, gw;          // (ghosts) m, m/s, rad/s: copies of position, velocity, angular velocity
+  std::vector<std::uint32_t> j_entry;    // (m) -, GatherIndex::j_entry with a crossing pair's k replaced by m + slot
   std::vector<std::uint32_t> slot_pair;  // (slots) -, the pair each slot copies, ascending
   std::vector<std::uint32_t> slot_of;    // (slots) -, its slot, in the order of slot_pair
-  std::vector<Vec3> sf, st;             // (slots) N, N m: copies of the force on i and the torque on j
-  std::vector<std::uint32_t> stamp;     // (n) -, build buffer: share + 1 that last gave a particle a ghost
-  std::vector<std::uint32_t> ghost_at;  // (n) -, build buffer: that share's ghost slot of the particle
-  std::vector<std::uint32_t> slot_at;   // (m) -, build buffer
+  std::vector<Vec3> sf, st;              // (slots) N, N m: copies of the force on i and the torque on j
+  std::vector<std::uint32_t> stamp;      // (n) -, build buffer: share + 1 that last gave a particle a ghost
+  std::vector<std::uint32_t> ghost_at;   // (n) -, build buffer: that share's ghost slot of the particle
+  std::vector<std::uint32_t> slot_at;    // (m) -, build buffer
 };
 
 /// Builds the halo of `pairs` for the particle shares `particles` (inactive for one share).

@@ -26,9 +26,8 @@ TEST_CASE("parallel_for visits every index exactly once, in chunks of the grain 
         const Executor::Shares shares = exec.shares(n, 64);
         // One share but under the owner partition, where there is one per thread (at most one per
         // 64 indices), ascending, on multiples of the grain (64 < k_share_align), equal to within it.
-        const std::size_t expected = partition == Partition::owner
-                                         ? std::max<std::size_t>(1, std::min<std::size_t>(threads, (n + 63) / 64))
-                                         : 1;
+        const std::size_t expected =
+            partition == Partition::owner ? std::max<std::size_t>(1, std::min<std::size_t>(threads, (n + 63) / 64)) : 1;
         CHECK(shares.count == expected);
         CHECK(shares.bounds[0] == 0);
         CHECK(shares.bounds[shares.count] == n);

@@ -106,9 +106,9 @@ TEST_CASE("owner partition: the halo maps every crossing pair and copies exactly
 TEST_CASE("only the owner partition with more than one thread builds a halo") {
   Model model = test::quartz_model(2e-8, 0.1e-3);
   const State start = dense_scene(model);
-  for (const ExecutorConfig cfg : {ExecutorConfig{Backend::tbb, 1, Partition::owner}, ExecutorConfig{Backend::serial, 4},
-                                   ExecutorConfig{Backend::tbb, 2, Partition::dynamic},
-                                   ExecutorConfig{Backend::tbb, 2, Partition::fixed}}) {
+  for (const ExecutorConfig cfg :
+       {ExecutorConfig{Backend::tbb, 1, Partition::owner}, ExecutorConfig{Backend::serial, 4},
+        ExecutorConfig{Backend::tbb, 2, Partition::dynamic}, ExecutorConfig{Backend::tbb, 2, Partition::fixed}}) {
     World w(model, start, systems_for(model), cfg);
     w.step(3);
     CHECK_FALSE(w.scratch().own<Halo>().active);
