@@ -7,6 +7,12 @@ the study's own constants (d0 = 0.619, m = 4.570) and with m fixed at 4.570 (d0 
 profile.csv, constants.csv and dilatancy-profile.png.
 
     tools/dilatancy_profile.py NAME=CAMPAIGN_DIR [NAME=DIR ...] [--docs docs/calibration/dilatancy-profile]
+        [--plastic]
+
+--plastic: d from plastic increments, d eps_v^p / d eps_q^p. On a constant-p path the elastic
+volumetric increment is zero, and the elastic deviatoric strain is (q - q0) / 3G, with 3G the
+initial slope of q against eps_q (a straight line through the rows up to eps_1 = 1e-4) of each
+test. The points are then made exactly as `triaxial analyze` makes them from total increments.
 """
 import argparse
 import csv
@@ -18,12 +24,28 @@ import numpy as np
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 sys.path.insert(0, os.path.join(ROOT, "apps", "analysis"))
 from sandcell_analysis.analyze import analyze_tests, parse_args  # noqa: E402
+from sandcell_analysis.csl import csl_e  # noqa: E402
+from sandcell_analysis.dilatancy import dilatancy_series  # noqa: E402
 from sandcell_analysis.results import b_key, collect_files, read_test  # noqa: E402
 
 STUDY_D0, STUDY_M = 0.619, 4.570
 
 
-def points(folder):
+def plastic_points(t, opt, cpar):
+    """The test's dilatancy points from plastic increments (see --plastic)."""
+    early = t["eps1"] <= 1e-4
+    if early.sum() < 4:
+        early = np.arange(t["eps1"].size) < 6
+    three_g = np.polyfit(t["eps_q"][early], t["q"][early], 1)[0]
+    eps_q_p = t["eps_q"] - (t["q"] - t["q"][0]) / three_g
+    dil = dilatancy_series(t["eps1"], t["eps_v"], eps_q_p, smooth=opt.smooth, min_strain=opt.min_strain,
+                           min_deq=opt.min_deq, others={k: t[k] for k in ("eta", "p", "e", "theta")},
+                           stress=t.get("stress"))
+    dil["psi"] = dil["e"] - csl_e(dil["p"], cpar["e_gamma"], cpar["lambda"], cpar["xi"])
+    return dil, three_g / 3.0
+
+
+def points(folder, plastic=False):
     """The pooled b = 0 constant-p dilatancy points (eta, psi, d), M_c, and the tests' p0."""
     opt = parse_args([folder, "--out", os.devnull])
     tests = []
@@ -33,6 +55,11 @@ def points(folder):
             tests.append(t)
     res = analyze_tests(tests, opt)
     zero = [t for t in tests if t["path"] == "constant_p" and b_key(t) == 0]
+    if plastic:
+        cpar = res["csl"]["params"]
+        for t in zero:
+            t["dil"], t["G"] = plastic_points(t, opt, cpar)
+            print(f"  {t['name']}: G = {t['G'] / 1e6:.0f} MPa from the initial slope", flush=True)
     pooled = {k: np.concatenate([t["dil"][k][t["dil"]["mask"]] for t in zero]) for k in ("eta", "psi", "d")}
     p0 = np.concatenate([np.full(int(t["dil"]["mask"].sum()), t["p0"]) for t in zero])
     return pooled, p0, res["m_theta"]["params"]["M_c"], res["li_dafalias"]["params"]
@@ -50,6 +77,7 @@ def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("campaigns", nargs="+", help="NAME=DIR")
     ap.add_argument("--docs", default=os.path.join(ROOT, "docs", "calibration", "dilatancy-profile"))
+    ap.add_argument("--plastic", action="store_true", help="d from plastic strain increments")
     args = ap.parse_args()
     grid = np.linspace(-2.0, 30.0, 161)
     profile, constants = [], []
@@ -59,7 +87,7 @@ def main():
     fig, ax = plt.subplots(figsize=(6.4, 4.2))
     for spec in args.campaigns:
         name, folder = spec.split("=", 1)
-        pts, p0, M, fitted = points(folder)
+        pts, p0, M, fitted = points(folder, args.plastic)
         for scope, sel in (("0.5-16 MPa", np.ones_like(p0, bool)), ("0.5 MPa", p0 == 0.5e6)):
             sub = {k: v[sel] for k, v in pts.items()}
             if sub["d"].size < 3:
@@ -81,7 +109,8 @@ def main():
     ax.axvline(STUDY_M, color="k", lw=0.8, ls=":")
     ax.set_xlabel("m (d0 refitted at each m)")
     ax.set_ylabel("RMS misfit of d")
-    ax.set_title("Li-Dafalias fit at b = 0, constant p: the misfit along m", fontsize=9)
+    ax.set_title("Li-Dafalias fit at b = 0, constant p: the misfit along m"
+                 + (" (plastic increments)" if args.plastic else ""), fontsize=9)
     ax.legend(fontsize=7)
     ax.grid(alpha=0.3)
     os.makedirs(args.docs, exist_ok=True)
