@@ -87,7 +87,49 @@ def test_smoke_recovers_the_truth_within_its_uncertainty(work):
     assert all(0.3 <= float(row.split(",")[1]) <= 0.7 for row in rows)
 
 
+@needs_binary
+def test_discrete_choice_picks_the_rolling_model_that_made_the_targets(work):
+    # The truth rolls with epsd2 at mu_r = 0.3, which raises the peak q/p well above rolling "none"
+    # (at 150 spheres by about 0.2, ten target sigmas): the option that made the targets must get
+    # nearly all the posterior probability, and the friction's posterior must contain its truth.
+    base = open(CONFIG).read().replace("[material]\n", "[material]\nrolling_friction = 0.3\n")
+    config = os.path.join(work, "choice.toml")
+    with open(config, "w") as f:
+        f.write(base + '[contact]\nrolling = "none"\n')
+    truth_config = os.path.join(work, "choice-truth.toml")
+    with open(truth_config, "w") as f:
+        f.write(base + '[contact]\nrolling = "epsd2"\n')
+    truth = os.path.join(work, "choice-truth")
+    subprocess.run([TRIAXIAL, truth_config, "--out", truth, "--overwrite", "--threads", "1"], check=True,
+                   capture_output=True)
+    import csv
+    row = next(csv.DictReader(open(os.path.join(truth, "index.csv"))))
+    targets = write_targets(os.path.join(work, "choice-targets.toml"),
+                            f"[targets]\npeak_eta = {{ value = {row['peak_eta']}, sigma = 0.02 }}\n"
+                            f"final_eta = {{ value = {row['final_eta']}, sigma = 0.02 }}\n")
+    out = os.path.join(work, "choice-cal")
+    r = calibrate(config, "--targets", targets, "--param", "material.friction=0.2:0.8", "--choice",
+                  "contact.rolling=none,epsd2", "--budget", "6", "--out", out, "--threads", "1")
+    assert r.returncode == 0, r.stderr
+    result = json.load(open(os.path.join(out, "calibration.json")))
+    assert result["choice"]["chosen"] == "epsd2", result["choice"]
+    assert result["choice"]["options"]["epsd2"]["probability"] > 0.95, result["choice"]
+    q = result["params"]["material.friction"]
+    assert abs(q["mean"] - 0.5) <= 3.0 * q["std"], q
+    header = open(os.path.join(out, "runs.csv")).readline().strip().split(",")
+    assert header[:3] == ["run", "contact.rolling", "material.friction"]
+    assert len(result["runs"]) == 12  # the budget per option
+
+
 @pytest.mark.parametrize("args, expect", [
+    (["--param", "material.friction=0.2:0.8", "--choice", "contact.rollin=none,epsd2"],
+     "--choice contact.rollin: unknown choice"),
+    (["--param", "material.friction=0.2:0.8", "--choice", "contact.rolling=none,epsd3"],
+     "--choice contact.rolling: unknown option 'epsd3'"),
+    (["--param", "material.friction=0.2:0.8", "--choice", "contact.rolling=epsd2"],
+     "needs at least two different options"),
+    (["--param", "material.friction=0.2:0.8", "--choice", "contact.rolling=epsd2,epsd2"],
+     "needs at least two different options"),
     (["--param", "material.fricton=0.2:0.8"], "--param material.fricton: unknown parameter"),
     (["--param", "material.friction=0.8:0.2"], "the range must be non-empty with LO < HI"),
     (["--param", "material.friction=0.5:0.5"], "the range must be non-empty with LO < HI"),

@@ -1,8 +1,8 @@
 """Calibration of a triaxial configuration's micro-parameters against macroscopic targets
 (`triaxial calibrate`).
 
-    triaxial calibrate CONFIG --targets FILE --param KEY=LO:HI [--param ...] [--budget N]
-        [--out DIR] [--threads T] [--seed S] [--resume]
+    triaxial calibrate CONFIG --targets FILE --param KEY=LO:HI [--param ...] [--choice KEY=A,B,...]
+        [--budget N] [--out DIR] [--threads T] [--seed S] [--resume]
 
 Method (a surrogate and its posterior, all in numpy/scipy):
 1. Design: `budget` points of a scrambled Sobol sequence over the box of the free parameters (a
@@ -19,7 +19,12 @@ Method (a surrogate and its posterior, all in numpy/scipy):
    (range / sqrt 12) is reported as not identified by these targets; the sensitivity table gives,
    per target and parameter, the change of the target across the parameter's range in units of
    the target's sigma (at the posterior mean of the others).
-6. Check: one more run at the posterior mean, against every target.
+6. A discrete choice (--choice, e.g. the rolling model): the design is run for every option, each
+   with its own surrogates and posterior. Each option's evidence is the mean of its likelihood over
+   the prior box (the same 2^16 points); with equal prior odds, the options' posterior
+   probabilities are the evidences normalized. The chosen option is the most probable one, and
+   steps 5-7 report it.
+7. Check: one more run at the posterior mean, against every target.
 Outputs in OUT: runs.csv (every run's parameters and measures), calibration.json, calibration.md,
 calibration.png (each target against each parameter, with the surrogate's slice; the marginals).
 
@@ -58,6 +63,12 @@ PARAMETERS = {
     "contact.rolling_damping": (0.0, 10.0),
 }
 
+# The discrete choices a calibration may make: config key -> the options allowed.
+CHOICES = {
+    "contact.rolling": ("none", "epsd2", "epsd", "cdt"),
+    "contact.tangential": ("history", "incremental"),
+}
+
 # Campaign measures (triaxial analyze's summary.json): name -> path of keys.
 CAMPAIGN_TARGETS = {
     "phi_c": ("m_theta", "phi_c_deg"),
@@ -94,6 +105,21 @@ def parse_param(text):
     if lo < a or hi > b:
         fail(f"--param {key}={lo:g}:{hi:g}: outside what the config allows, [{a:g}, {b:g}]")
     return key, lo, hi
+
+
+def parse_choice(text):
+    if "=" not in text:
+        fail(f"--choice {text}: expected KEY=A,B,..., e.g. contact.rolling=epsd2,epsd,cdt")
+    key, opts = text.split("=", 1)
+    if key not in CHOICES:
+        fail(f"--choice {key}: unknown choice (allowed: {', '.join(CHOICES)})")
+    options = [o for o in opts.split(",") if o]
+    bad = [o for o in options if o not in CHOICES[key]]
+    if bad:
+        fail(f"--choice {key}: unknown option {bad[0]!r} (allowed: {', '.join(CHOICES[key])})")
+    if len(set(options)) != len(options) or len(options) < 2:
+        fail(f"--choice {text}: needs at least two different options")
+    return key, options
 
 
 def parse_targets(path):
@@ -166,11 +192,14 @@ def design(space, budget, seed):
         return qmc.Sobol(d=len(space), scramble=True, seed=seed).random(budget)
 
 
-def run_config(base, space, x):
+def run_config(base, space, x, choice=None):
     cfg = json.loads(json.dumps(base))
     for (key, _, _), v in zip(space, x):
         table, name = key.split(".", 1)
         cfg.setdefault(table, {})[name] = float(v)
+    if choice is not None:
+        table, name = choice[0].split(".", 1)
+        cfg.setdefault(table, {})[name] = choice[1]
     cfg.setdefault("output", {})["plot"] = False
     return cfg
 
@@ -260,6 +289,7 @@ def posterior(space, targets, surrogates, seed, n=1 << 16):
         coef, s = surrogates[name]
         logl += -0.5 * (predict(coef, u) - value) ** 2 / (sigma ** 2 + s ** 2)
     w = np.exp(logl - logl.max())
+    log_evidence = float(logl.max() + np.log(w.mean()))  # log of the mean likelihood over the prior box
     w /= w.sum()
     x = to_params(u, space)
     mean = w @ x
@@ -273,7 +303,7 @@ def posterior(space, targets, surrogates, seed, n=1 << 16):
         out[key] = dict(mean=float(mean[k]), std=float(std[k]), q05=q05, q95=q95, map=float(x[np.argmax(w), k]),
                         prior_std=prior_std, identified=bool(std[k] < 0.5 * prior_std))
     ess = float(1.0 / np.sum(w ** 2))
-    return out, u, w, ess
+    return out, u, w, ess, log_evidence
 
 
 def sensitivity(space, targets, surrogates, center_u):
@@ -292,12 +322,14 @@ def sensitivity(space, targets, surrogates, center_u):
 
 
 # ------------------------------------------------------------------------------ reports
-def write_runs(path, space, targets, xs, ys):
+def write_runs(path, space, targets, rows, choice_key=None):
+    """rows: (run name, option or None, parameters, measures)."""
     with open(path, "w", newline="") as f:
         w = csv.writer(f)
-        w.writerow(["run"] + [k for k, _, _ in space] + list(targets))
-        for i, (x, y) in enumerate(zip(xs, ys)):
-            w.writerow([f"run-{i:03d}"] + [f"{v:.10g}" for v in x] + [f"{y[n]:.10g}" for n in targets])
+        w.writerow(["run"] + ([choice_key] if choice_key else []) + [k for k, _, _ in space] + list(targets))
+        for name, option, x, y in rows:
+            w.writerow([name] + ([option] if choice_key else []) + [f"{v:.10g}" for v in x] +
+                       [f"{y[n]:.10g}" for n in targets])
 
 
 def plot(path, space, targets, xs, ys, surrogates, post, center_u):
@@ -333,13 +365,24 @@ def plot(path, space, targets, xs, ys, surrogates, post, center_u):
 def report_md(path, args, space, targets, result):
     lines = [f"# Calibration of {args.config}", "",
              f"Command: `triaxial calibrate {' '.join(sys.argv[1:])}`", "",
-             f"{len(result['runs'])} runs (budget {args.budget}) and one check run; quadratic surrogate per target; "
+             f"{len(result['runs'])} runs (budget {args.budget}"
+             f"{' per option' if result.get('choice') else ''}) and one check run; quadratic surrogate per target; "
              f"effective posterior sample size {result['ess']:.0f}.", "",
              "| parameter | range | posterior mean +- std | 5-95 % | MAP | identified |", "|---|---|---|---|---|---|"]
     for key, lo, hi in space:
         q = result["params"][key]
         lines.append(f"| {key} | {lo:g} - {hi:g} | {q['mean']:.4g} +- {q['std']:.2g} | {q['q05']:.4g} - {q['q95']:.4g} "
                      f"| {q['map']:.4g} | {'yes' if q['identified'] else 'no'} |")
+    if result.get("choice"):
+        c = result["choice"]
+        lines += ["", f"Discrete choice {c['key']}: the design run for each option; posterior probability of each "
+                  f"(equal prior odds), and its continuous posterior. Chosen: **{c['chosen']}**; the tables below "
+                  "are for it.", "",
+                  "| option | probability | log evidence | " + " | ".join(k for k, _, _ in space) + " |",
+                  "|---|---|---|" + "---|" * len(space)]
+        for opt, q in c["options"].items():
+            cells = [f"{q['params'][k]['mean']:.4g} +- {q['params'][k]['std']:.2g}" for k, _, _ in space]
+            lines.append(f"| {opt} | {q['probability']:.3g} | {q['log_evidence']:.2f} | " + " | ".join(cells) + " |")
     lines += ["", "| target | value +- sigma | surrogate error | check run | z |", "|---|---|---|---|---|"]
     for name, (value, sigma) in targets.items():
         c = result["check"].get(name, float("nan"))
@@ -364,7 +407,11 @@ def main(argv=None):
     ap.add_argument("config", help="the triaxial configuration (TOML) whose parameters are calibrated")
     ap.add_argument("--targets", required=True, help="TOML file with a [targets] table")
     ap.add_argument("--param", action="append", default=[], metavar="KEY=LO:HI", help="a free parameter and its range")
-    ap.add_argument("--budget", type=int, default=None, help="runs of the design (default: 4 x the minimum)")
+    ap.add_argument("--choice", default=None, metavar="KEY=A,B,...",
+                    help="a discrete choice and its options (" + "; ".join(f"{k}: {', '.join(v)}"
+                                                                           for k, v in CHOICES.items()) + ")")
+    ap.add_argument("--budget", type=int, default=None,
+                    help="runs of the design, per option of --choice (default: 4 x the minimum)")
     ap.add_argument("--out", default=None, help="output directory (default: results/calibrate-<config name>)")
     ap.add_argument("--threads", type=int, default=2)
     ap.add_argument("--seed", type=int, default=1, help="the design's Sobol scrambling seed")
@@ -376,6 +423,7 @@ def main(argv=None):
     keys = [k for k, _, _ in space]
     if len(set(keys)) != len(keys):
         fail(f"--param: a parameter is given twice ({', '.join(keys)})")
+    choice = parse_choice(args.choice) if args.choice else None
     targets = parse_targets(args.targets)
     need = min_budget(len(space))
     if args.budget is None:
@@ -398,34 +446,50 @@ def main(argv=None):
 
     u = design(space, args.budget, args.seed)
     xs = to_params(u, space)
-    ys = []
-    for i, x in enumerate(xs):
-        folder = run_point(f"run-{i:03d}", run_config(base, space, x), args)
-        m = measures_of(folder, targets, args.triaxial)
-        if m is None:
-            fail(f"run-{i:03d}: no finished test in {folder}/index.csv", 1)
-        ys.append(m)
-    write_runs(os.path.join(args.out, "runs.csv"), space, targets, xs, ys)
-    surrogates = {}
-    for name in targets:
-        y = np.array([m[name] for m in ys])
-        if not np.all(np.isfinite(y)):
-            fail(f"targets.{name}: not measured in every run (runs.csv): the analysis could not fit it", 1)
-        surrogates[name] = fit_surrogate(u, y)
-    params, pu, pw, ess = posterior(space, targets, surrogates, args.seed)
+    options = choice[1] if choice else [None]
+    rows, fits = [], {}
+    for option in options:
+        ys = []
+        for i, x in enumerate(xs):
+            name = f"run-{i:03d}" + (f"-{option}" if option else "")
+            folder = run_point(name, run_config(base, space, x, (choice[0], option) if option else None), args)
+            m = measures_of(folder, targets, args.triaxial)
+            if m is None:
+                fail(f"{name}: no finished test in {folder}/index.csv", 1)
+            ys.append(m)
+            rows.append((name, option, x, m))
+        surrogates = {}
+        for tname in targets:
+            y = np.array([m[tname] for m in ys])
+            if not np.all(np.isfinite(y)):
+                fail(f"targets.{tname}: not measured in every run (runs.csv): the analysis could not fit it", 1)
+            surrogates[tname] = fit_surrogate(u, y)
+        fits[option] = (ys, surrogates, posterior(space, targets, surrogates, args.seed))
+    write_runs(os.path.join(args.out, "runs.csv"), space, targets, rows, choice[0] if choice else None)
+    log_z = {o: fits[o][2][4] for o in options}
+    top = max(log_z.values())
+    norm = sum(math.exp(v - top) for v in log_z.values())
+    chosen = max(options, key=lambda o: log_z[o]) if choice else None
+    ys, surrogates, (params, pu, pw, ess, _) = fits[chosen]
     center = np.array([params[k]["mean"] for k in keys])
     center_u = to_unit(center[None, :], space)[0]
-    check_folder = run_point("check", run_config(base, space, center), args)
+    check_folder = run_point("check", run_config(base, space, center, (choice[0], chosen) if choice else None), args)
     check = measures_of(check_folder, targets, args.triaxial)
-    result = dict(config=args.config, budget=args.budget, seed=args.seed, runs=[f"run-{i:03d}" for i in range(len(xs))],
+    result = dict(config=args.config, budget=args.budget, seed=args.seed, runs=[r[0] for r in rows],
                   params=params, ess=ess, targets={n: dict(value=v, sigma=s) for n, (v, s) in targets.items()},
                   surrogate_error={n: surrogates[n][1] for n in targets}, check=check,
                   sensitivity=sensitivity(space, targets, surrogates, center_u))
+    if choice:
+        result["choice"] = dict(key=choice[0], chosen=chosen, options={
+            o: dict(probability=math.exp(log_z[o] - top) / norm, log_evidence=log_z[o], params=fits[o][2][0])
+            for o in options})
     with open(os.path.join(args.out, "calibration.json"), "w") as f:
         json.dump(result, f, indent=1)
     report_md(os.path.join(args.out, "calibration.md"), args, space, targets, result)
     plot(os.path.join(args.out, "calibration.png"), space, targets, xs, ys, surrogates,
          dict(u=pu, w=pw, params=params), center_u)
-    print(f"{PROG}: " + ", ".join(f"{k} = {params[k]['mean']:.4g} +- {params[k]['std']:.2g}" for k in keys) +
+    chose = (f"{choice[0]} = {chosen} (probability {result['choice']['options'][chosen]['probability']:.3g}), "
+             if choice else "")
+    print(f"{PROG}: " + chose + ", ".join(f"{k} = {params[k]['mean']:.4g} +- {params[k]['std']:.2g}" for k in keys) +
           f"; report {os.path.join(args.out, 'calibration.md')}")
     return 0
