@@ -12,9 +12,7 @@
 #include <algorithm>
 #include <array>
 #include <atomic>
-#include <memory>
 #include <cstdlib>
-#include <vector>
 #include <string>
 #include <thread>
 
@@ -39,18 +37,6 @@ Executor::Executor(ExecutorConfig config) : backend_(config.backend), partition_
 }
 
 Executor::~Executor() = default;
-
-std::vector<int> allowed_cpus() {
-  std::vector<int> cpus;
-#ifdef __linux__
-  cpu_set_t set;
-  CPU_ZERO(&set);
-  if (sched_getaffinity(0, sizeof set, &set) == 0)
-    for (int c = 0; c < CPU_SETSIZE; ++c)
-      if (CPU_ISSET(c, &set)) cpus.push_back(c);
-#endif
-  return cpus;
-}
 
 int available_cpus() {
   if (const char* slurm = std::getenv("SLURM_CPUS_PER_TASK"); slurm && *slurm) {

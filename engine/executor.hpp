@@ -11,7 +11,6 @@
 #include <array>
 #include <cstddef>
 #include <memory>
-#include <vector>
 
 namespace sandcell {
 
@@ -39,8 +38,6 @@ struct ExecutorConfig {
 /// integer, else the CPUs of the process's affinity mask (sched_getaffinity: taskset, cgroups
 /// cpusets, a scheduler's binding), else std::thread::hardware_concurrency(); at least 1.
 int available_cpus();
-/// The CPUs of the process's affinity mask, ascending (empty where it cannot be read).
-std::vector<int> allowed_cpus();
 
 class Executor {
  public:

@@ -7,7 +7,6 @@
 #include <oneapi/tbb/task_arena.h>
 
 #include <memory>
-#include <vector>
 
 namespace sandcell {
 

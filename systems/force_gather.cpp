@@ -4,7 +4,6 @@
 #include "systems/integrate.hpp"
 #include "systems/pair_list.hpp"
 
-#include <limits>
 
 namespace sandcell {
 
