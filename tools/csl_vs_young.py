@@ -8,13 +8,13 @@ seeds of e_c at each p0 and of the drop e_c(0.5 MPa) - e_c(8 MPa).
     tools/csl_vs_young.py [--young 70e9,280e9] [--seeds 1,2,3,4] [--friction 0.35]
         [--rolling-friction 0.064] [--out results/csl-vs-young] [--docs docs/calibration/csl-vs-young]
 
-Resumable: a campaign whose tests are all done is not run again.
+Resumable: a campaign whose tests are all done is not run again; each runs in
+OUT/runs/E<GPa>GPa-seed<S>, as `triaxial calibrate` runs its points.
 """
 import argparse
 import csv
 import json
 import os
-import subprocess
 import sys
 import tomllib
 
@@ -22,7 +22,7 @@ import numpy as np
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 sys.path.insert(0, os.path.join(ROOT, "apps", "analysis"))
-from sandcell_analysis.study import toml_dump  # noqa: E402
+from sandcell_analysis.calibrate import run_point  # noqa: E402
 
 
 def main():
@@ -40,26 +40,11 @@ def main():
     rows = []
     for young in [float(v) for v in args.young.split(",")]:
         for seed in [int(v) for v in args.seeds.split(",")]:
-            folder = os.path.join(args.out, f"E{young / 1e9:g}GPa-seed{seed}")
-            os.makedirs(folder, exist_ok=True)
             cfg = json.loads(json.dumps(base))
             cfg["material"].update(young=young, friction=args.friction, rolling_friction=args.rolling_friction)
             cfg["sample"]["seed"] = seed
-            path = os.path.join(folder, "config.toml")
-            text = toml_dump(cfg)
+            folder = run_point(f"E{young / 1e9:g}GPa-seed{seed}", cfg, args)
             index = os.path.join(folder, "index.csv")
-            finished = os.path.exists(index) and all(r["status"].startswith("done")
-                                                     for r in csv.DictReader(open(index)))
-            same = os.path.exists(path) and open(path).read() == text
-            if not (same and finished):
-                with open(path, "w") as f:
-                    f.write(text)
-                cmd = [args.triaxial, path, "--out", folder, "--threads", str(args.threads),
-                       "--resume" if same else "--overwrite"]
-                print(" ".join(cmd), flush=True)
-                with open(os.path.join(folder, "log.txt"), "a") as log:
-                    if subprocess.run(cmd, stdout=log, stderr=subprocess.STDOUT).returncode != 0:
-                        sys.exit(f"{folder}: triaxial failed; see its log.txt")
             for r in csv.DictReader(open(index)):
                 rows.append(dict(young=young, seed=seed, p0=float(r["p0_Pa"]), e0=float(r["e0"]),
                                  final_e=float(r["final_e"]), final_eta=float(r["final_eta"]),

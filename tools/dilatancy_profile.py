@@ -46,7 +46,7 @@ def plastic_points(t, opt, cpar):
 
 
 def points(folder, plastic=False):
-    """The pooled b = 0 constant-p dilatancy points (eta, psi, d), M_c, and the tests' p0."""
+    """The pooled b = 0 constant-p dilatancy points (eta, psi, d), the tests' p0 per point, and M_c."""
     opt = parse_args([folder, "--out", os.devnull])
     tests = []
     for f, _ in collect_files([folder]):
@@ -62,7 +62,7 @@ def points(folder, plastic=False):
             print(f"  {t['name']}: G = {t['G'] / 1e6:.0f} MPa from the initial slope", flush=True)
     pooled = {k: np.concatenate([t["dil"][k][t["dil"]["mask"]] for t in zero]) for k in ("eta", "psi", "d")}
     p0 = np.concatenate([np.full(int(t["dil"]["mask"].sum()), t["p0"]) for t in zero])
-    return pooled, p0, res["m_theta"]["params"]["M_c"], res["li_dafalias"]["params"]
+    return pooled, p0, res["m_theta"]["params"]["M_c"]
 
 
 def misfit(pts, M, m, d0=None):
@@ -87,7 +87,7 @@ def main():
     fig, ax = plt.subplots(figsize=(6.4, 4.2))
     for spec in args.campaigns:
         name, folder = spec.split("=", 1)
-        pts, p0, M, fitted = points(folder, args.plastic)
+        pts, p0, M = points(folder, args.plastic)
         for scope, sel in (("0.5-16 MPa", np.ones_like(p0, bool)), ("0.5 MPa", p0 == 0.5e6)):
             sub = {k: v[sel] for k, v in pts.items()}
             if sub["d"].size < 3:

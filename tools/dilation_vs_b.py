@@ -15,7 +15,7 @@ With --campaign, no runs: the two measures' Spearman rho over b in every (path, 
 finished campaigns (campaign-trend.csv).
 
 Resumable: a campaign whose tests are all done is not run again (`triaxial --resume` finishes a
-killed one).
+killed one); each runs in OUT/runs/<rolling>-mur<mu_r>, as `triaxial calibrate` runs its points.
 """
 import argparse
 import csv
@@ -29,23 +29,10 @@ import numpy as np
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 sys.path.insert(0, os.path.join(ROOT, "apps", "analysis"))
+from sandcell_analysis.analyze import spearman  # noqa: E402
+from sandcell_analysis.calibrate import run_point  # noqa: E402
 from sandcell_analysis.dilatancy import slope_max_dilation  # noqa: E402
 from sandcell_analysis.results import read_columns  # noqa: E402
-from sandcell_analysis.study import toml_dump  # noqa: E402
-
-
-def spearman(x, y):
-    rx = np.argsort(np.argsort(x)).astype(float)
-    ry = np.argsort(np.argsort(y)).astype(float)
-    return float(np.corrcoef(rx, ry)[0, 1])
-
-
-def done(folder):
-    path = os.path.join(folder, "index.csv")
-    if not os.path.exists(path):
-        return False
-    rows = list(csv.DictReader(open(path)))
-    return bool(rows) and all(r["status"].startswith("done") for r in rows)
 
 
 def largest_rates(path):
@@ -66,8 +53,7 @@ def campaign_trends(folders, docs):
                 continue
             b = np.array([float(r["b"]) for r in sel])
             rates = np.array([largest_rates(os.path.join(folder, r["file"])) for r in sel])
-            rho_q = spearman(b, rates[:, 0]) if np.isfinite(rates[:, 0]).all() else float("nan")
-            rho_1 = spearman(b, rates[:, 1]) if np.isfinite(rates[:, 1]).all() else float("nan")
+            rho_q, rho_1 = spearman(b, rates[:, 0]), spearman(b, rates[:, 1])
             out.append(dict(campaign=os.path.basename(os.path.normpath(folder)), path=path, p0_MPa=p0 / 1e6,
                             tests=len(sel), rho_eps_q=rho_q, rho_eps_1=rho_1))
             print(f"{out[-1]['campaign']} {path} {p0 / 1e6:g} MPa: rho(b, max -dv/dq) {rho_q:+.2f}, "
@@ -96,45 +82,28 @@ def main():
     rows, trends = [], []
     for model in args.rolling.split(","):
         for mu_r in [float(v) for v in args.mu_r.split(",")]:
-            name = f"{model}-mur{mu_r:g}"
-            folder = os.path.join(args.out, name)
-            os.makedirs(folder, exist_ok=True)
             cfg = json.loads(json.dumps(base))
             cfg["contact"]["rolling"] = model
             cfg["material"]["rolling_friction"] = mu_r
-            path = os.path.join(folder, "config.toml")
-            text = toml_dump(cfg)
-            fresh = not os.path.exists(path) or open(path).read() != text
-            if fresh or not done(folder):
-                with open(path, "w") as f:
-                    f.write(text)
-                cmd = [args.triaxial, path, "--out", folder, "--threads", str(args.threads),
-                       "--overwrite" if fresh else "--resume"]
-                print(" ".join(cmd), flush=True)
-                with open(os.path.join(folder, "log.txt"), "a") as log:
-                    if subprocess.run(cmd, stdout=log, stderr=subprocess.STDOUT).returncode != 0:
-                        sys.exit(f"{name}: triaxial failed; see {folder}/log.txt")
+            name = f"{model}-mur{mu_r:g}"
+            folder = run_point(name, cfg, args)  # a new or changed config drops the folder's analysis
             analysis = os.path.join(folder, "analysis")
-            if fresh or not os.path.exists(os.path.join(analysis, "summary.json")):
+            if not os.path.exists(os.path.join(analysis, "summary.json")):
                 subprocess.run([args.triaxial, "analyze", folder, "--out", analysis], check=True,
                                capture_output=True)
             summary = json.load(open(os.path.join(analysis, "summary.json")))
             tests = sorted(summary["tests"], key=lambda t: t["b"])
             for t in tests:
-                # The same test's largest -d eps_v / d eps_1 (slopes over windows of 1 % of eps_1):
-                # the measure a study reporting dilation against axial strain would take.
-                s = read_columns(os.path.join(folder, os.path.basename(t["file"])), ("strain", "eps_v"))
-                eps1 = s["strain"][:, 0]
+                # max_dv_de1: the largest -d eps_v / d eps_1 (slopes over windows of 1 % of eps_1), the
+                # measure a study reporting dilation against axial strain would take.
                 rows.append(dict(rolling=model, mu_r=mu_r, b=t["b"], max_dilation=-t["min_d"],
-                                 eps1_at_max=t["eps1_min_d"],
-                                 max_dilation_eps1=slope_max_dilation(eps1, s["eps_v"], eps1),
+                                 eps1_at_max=t["eps1_min_d"], max_dilation_eps1=t["max_dv_de1"],
                                  peak_eta=t["peak"]["eta"], critical=t["critical"], eps_v_end=t["eps_v_end"]))
             b = np.array([t["b"] for t in tests])
             mine = rows[-len(tests):]
             d = np.array([r["max_dilation"] for r in mine])
             d1 = np.array([r["max_dilation_eps1"] for r in mine])
-            rho = spearman(b, d) if np.isfinite(d).all() else float("nan")
-            rho1 = spearman(b, d1) if np.isfinite(d1).all() else float("nan")
+            rho, rho1 = spearman(b, d), spearman(b, d1)
             trends.append(dict(rolling=model, mu_r=mu_r, rho=rho, reproduced=bool(rho >= 0.8),
                                d_b0=d[0], d_b1=d[-1], rho_eps1=rho1, d1_b0=d1[0], d1_b1=d1[-1]))
             print(f"{name}: max -dv/dq {' '.join(f'{v:.3f}' for v in d)} (rho {rho:+.2f}); "

@@ -40,6 +40,13 @@ def work():
     shutil.rmtree(d, ignore_errors=True)
 
 
+def truth_row(config, out):
+    """The first index.csv row of CONFIG run by the app itself (the config holds the true values)."""
+    import csv
+    subprocess.run([TRIAXIAL, config, "--out", out, "--overwrite", "--threads", "1"], check=True, capture_output=True)
+    return next(csv.DictReader(open(os.path.join(out, "index.csv"))))
+
+
 def write_targets(path, text):
     with open(path, "w") as f:
         f.write(text)
@@ -48,12 +55,7 @@ def write_targets(path, text):
 
 @needs_binary
 def test_smoke_recovers_the_truth_within_its_uncertainty(work):
-    # The truth's measures, from the app itself (the config holds the true values).
-    truth = os.path.join(work, "truth")
-    subprocess.run([TRIAXIAL, CONFIG, "--out", truth, "--overwrite", "--threads", "1"], check=True,
-                   capture_output=True)
-    import csv
-    row = next(csv.DictReader(open(os.path.join(truth, "index.csv"))))
+    row = truth_row(CONFIG, os.path.join(work, "truth"))
     targets = write_targets(os.path.join(work, "targets.toml"),
                             f"[targets]\ne0 = {{ value = {row['e0']}, sigma = 0.005 }}\n"
                             f"peak_eta = {{ value = {row['peak_eta']}, sigma = 0.02 }}\n")
@@ -99,11 +101,7 @@ def test_discrete_choice_picks_the_rolling_model_that_made_the_targets(work):
     truth_config = os.path.join(work, "choice-truth.toml")
     with open(truth_config, "w") as f:
         f.write(base + '[contact]\nrolling = "epsd2"\n')
-    truth = os.path.join(work, "choice-truth")
-    subprocess.run([TRIAXIAL, truth_config, "--out", truth, "--overwrite", "--threads", "1"], check=True,
-                   capture_output=True)
-    import csv
-    row = next(csv.DictReader(open(os.path.join(truth, "index.csv"))))
+    row = truth_row(truth_config, os.path.join(work, "choice-truth"))
     targets = write_targets(os.path.join(work, "choice-targets.toml"),
                             f"[targets]\npeak_eta = {{ value = {row['peak_eta']}, sigma = 0.02 }}\n"
                             f"final_eta = {{ value = {row['final_eta']}, sigma = 0.02 }}\n")
