@@ -9,12 +9,20 @@
     fixed      dem-bench, T threads, TBB's static partition (--partition fixed)
     liggghts   LIGGGHTS on T MPI ranks (when installed and --liggghts), same scene
 
-each run timed by itself, with the CPU time other processes used meanwhile (from /proc/stat and
-the run's own rusage), so that rounds run beside a foreign load can be told apart. Writes one CSV
-row per round and prints p10 / median / p90 of every throughput and of the per-round ratios.
+for each thread count T of --threads, each run timed by itself, with the CPU time other processes
+used meanwhile (from /proc/stat and the run's own rusage), so that rounds run beside a foreign load
+can be told apart. Writes one CSV row per round (after every round, so a run stopped by
+--minutes or killed keeps the rounds it finished) and prints p10 / median / p90 of every
+throughput and of the per-round ratios.
 
-    tools/scaling_rounds.py [--rounds 30] [--threads 2] [--steps 2000] [--liggghts]
+    tools/scaling_rounds.py [--rounds 30] [--threads 2 | --threads 2,4,8,16] [--steps 2000]
+        [--partitions owner,dynamic,fixed] [--liggghts] [--liggghts-one] [--minutes M]
         [--compat] [--csv docs/bench/scaling-rounds.csv] [--bench build/release/apps/dem-bench/dem-bench]
+
+With one T the CSV columns are one, owner, dynamic, fixed, liggghts (as in the committed
+docs/bench/scaling-rounds-*.csv); with several, each T-thread column is suffixed _T (owner_8,
+liggghts_8). --liggghts-one adds LIGGGHTS on 1 rank (liggghts_1), for LIGGGHTS's own scaling.
+The probe runs with the largest T.
 
 The scene is dem-bench's dense-20k (scene A); with --liggghts both codes run it in LIGGGHTS'
 mode (--compat: no affine term), as tools/compare-liggghts.sh does.
@@ -65,84 +73,112 @@ def q(a):
 
 
 def main():
-    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[1])
     ap.add_argument("--rounds", type=int, default=30)
-    ap.add_argument("--threads", type=int, default=2)
+    ap.add_argument("--threads", default="2", help="T, or a comma-separated list of T (each >= 2)")
     ap.add_argument("--steps", type=int, default=2000)
+    ap.add_argument("--partitions", default="owner,dynamic,fixed", help="comma-separated, of owner, dynamic, fixed")
     ap.add_argument("--liggghts", action="store_true", help="add LIGGGHTS on T ranks to every round")
+    ap.add_argument("--liggghts-one", action="store_true", help="with --liggghts: LIGGGHTS on 1 rank too")
+    ap.add_argument("--minutes", type=float, default=0.0, help="start no round after this many minutes (0: no limit)")
     ap.add_argument("--compat", action="store_true", help="dem-bench --compat (implied by --liggghts)")
     ap.add_argument("--csv", default=os.path.join(ROOT, "docs", "bench", "scaling-rounds.csv"))
     ap.add_argument("--bench", default=os.path.join(ROOT, "build", "release", "apps", "dem-bench", "dem-bench"))
     args = ap.parse_args()
-    if args.rounds < 1 or args.threads < 2 or args.steps < 1:
-        sys.exit("--rounds >= 1, --threads >= 2, --steps >= 1")
+    try:
+        threads = [int(t) for t in args.threads.split(",")]
+    except ValueError:
+        sys.exit(f"--threads {args.threads}: must be an integer or a comma-separated list of integers >= 2")
+    partitions = args.partitions.split(",")
+    if args.rounds < 1 or min(threads) < 2 or args.steps < 1 or args.minutes < 0:
+        sys.exit("--rounds >= 1, --threads >= 2 (each), --steps >= 1, --minutes >= 0")
+    if not partitions or any(p not in ("owner", "dynamic", "fixed") for p in partitions) or len(set(partitions)) != len(partitions):
+        sys.exit(f"--partitions {args.partitions}: a comma-separated list of distinct owner, dynamic, fixed")
     if not os.access(args.bench, os.X_OK):
         sys.exit(f"--bench {args.bench}: not an executable (build first)")
     compat = ["--compat"] if (args.compat or args.liggghts) else []
+    name = (lambda k, T: k) if len(threads) == 1 else (lambda k, T: f"{k}_{T}")  # noqa: E731
+    ranks = ([1] if args.liggghts and args.liggghts_one else []) + (threads if args.liggghts else [])
     work = tempfile.mkdtemp(prefix="scaling-")
     if args.liggghts:
         if not shutil.which("liggghts") or not shutil.which("mpirun"):
             sys.exit("--liggghts: liggghts and mpirun must be installed (apt-get install liggghts)")
-        subprocess.run(["/usr/bin/python3", os.path.join(ROOT, "tools", "liggghts", "packing2data.py"),
+        subprocess.run(["/usr/bin/python3" if os.path.exists("/usr/bin/python3") else sys.executable,
+                        os.path.join(ROOT, "tools", "liggghts", "packing2data.py"),
                         os.path.join(ROOT, "apps", "dem-bench", "scenes", "dense-20k.txt"),
                         os.path.join(work, "dense-20k.data")], check=True)
+    os.makedirs(os.path.dirname(os.path.abspath(args.csv)), exist_ok=True)
     rows = []
+    t_start = time.monotonic()
     try:
         for r in range(1, args.rounds + 1):
+            if args.minutes and r > 1 and time.monotonic() - t_start > 60 * args.minutes:
+                print(f"--minutes {args.minutes:g}: stopping after {r - 1} rounds", flush=True)
+                break
             row = {"round": r}
-            out, _, foreign = timed([args.bench, "--probe", "--threads", str(args.threads)])
+            out, _, foreign = timed([args.bench, "--probe", "--threads", str(max(threads))])
             p = json.loads(out)
             row.update(alu_ratio=p["alu_ratio"], pingpong_ns=p["pingpong_ns"], probe_foreign=foreign)
-            for name, extra in (("one", ["--threads", "1"]),
-                                ("dynamic", ["--threads", str(args.threads), "--partition", "dynamic"]),
-                                ("fixed", ["--threads", str(args.threads), "--partition", "fixed"]),
-                                ("owner", ["--threads", str(args.threads), "--partition", "owner"])):
+            runs = [("one", ["--threads", "1"])]
+            for T in threads:
+                runs += [(name(k, T), ["--threads", str(T), "--partition", k]) for k in partitions]
+            for key, extra in runs:
                 out, _, foreign = timed([args.bench, "--steps", str(args.steps), "--json", *compat, *extra])
                 report = json.loads(out)
-                row[name] = report["particle_steps_per_s"]
+                row[key] = report["particle_steps_per_s"]
                 particles = report["particles"]  # the same scene LIGGGHTS runs
-                row[name + "_foreign"] = foreign
-            if args.liggghts:
-                out, _, foreign = timed(["mpirun", "--allow-run-as-root", "-np", str(args.threads), "liggghts", "-in",
+                row[key + "_foreign"] = foreign
+            for T in ranks:
+                out, _, foreign = timed(["mpirun", "--allow-run-as-root", "-np", str(T), "liggghts", "-in",
                                          os.path.join(ROOT, "tools", "liggghts", "bench.in"), "-var", "data",
                                          "dense-20k.data", "-var", "nsteps", str(args.steps), "-var", "erate", "0",
                                          "-log", "none"], cwd=work)
                 loops = [float(line.split()[3]) for line in out.splitlines() if "Loop time" in line]
-                row["liggghts"] = particles * args.steps / loops[1]  # the timed run, between the two `run 0`
-                row["liggghts_foreign"] = foreign
+                key = "liggghts_1" if T == 1 else name("liggghts", T)
+                row[key] = particles * args.steps / loops[1]  # the timed run, between the two `run 0`
+                row[key + "_foreign"] = foreign
             rows.append(row)
             print(" ".join(f"{k} {v:.4g}" if isinstance(v, float) else f"{k} {v}" for k, v in row.items()), flush=True)
+            with open(args.csv, "w", newline="") as f:
+                w = csv.DictWriter(f, fieldnames=list(rows[0].keys()))
+                w.writeheader()
+                w.writerows(rows)
     finally:
         shutil.rmtree(work, ignore_errors=True)
-    os.makedirs(os.path.dirname(args.csv), exist_ok=True)
-    with open(args.csv, "w", newline="") as f:
-        w = csv.DictWriter(f, fieldnames=list(rows[0].keys()))
-        w.writeheader()
-        w.writerows(rows)
-    T = args.threads
+    if not rows:
+        sys.exit("no round finished")
     col = lambda k: np.array([row[k] for row in rows], dtype=float)  # noqa: E731
-    print(f"\n{len(rows)} rounds, {args.steps} steps, T = {T}; p10 / median / p90")
-    for k in ["one", "dynamic", "fixed", "owner"] + (["liggghts"] if args.liggghts else []):
-        a = q(col(k) / 1e6)
-        print(f"  {k:9s} {a[0]:7.2f} {a[1]:7.2f} {a[2]:7.2f} M particle-steps/s")
     one_median = np.median(col("one"))
-    for k in ["dynamic", "fixed", "owner"]:
-        a = q(col(k) / col("one"))
-        print(f"  {k}/one per round {a[0]:.2f} {a[1]:.2f} {a[2]:.2f};  p10 of {k} / median one "
-              f"{np.percentile(col(k), 10) / one_median:.2f}")
-        if args.liggghts:
-            a = q(col(k) / col("liggghts"))
-            print(f"  {k}/liggghts per round {a[0]:.2f} {a[1]:.2f} {a[2]:.2f}")
+    print(f"\n{len(rows)} rounds, {args.steps} steps, T = {args.threads}; p10 / median / p90")
+    a = q(col("one") / 1e6)
+    print(f"  {'one':12s} {a[0]:7.2f} {a[1]:7.2f} {a[2]:7.2f} M particle-steps/s")
+    if args.liggghts and args.liggghts_one:
+        a = q(col("liggghts_1") / 1e6)
+        print(f"  {'liggghts_1':12s} {a[0]:7.2f} {a[1]:7.2f} {a[2]:7.2f} M particle-steps/s")
+    for T in threads:
+        for k in partitions + (["liggghts"] if args.liggghts else []):
+            a = q(col(name(k, T)) / 1e6)
+            print(f"  {name(k, T):12s} {a[0]:7.2f} {a[1]:7.2f} {a[2]:7.2f} M particle-steps/s")
+        for k in partitions:
+            a = q(col(name(k, T)) / col("one"))
+            print(f"  {name(k, T)}/one per round {a[0]:.2f} {a[1]:.2f} {a[2]:.2f};  p10 of {name(k, T)} / median one "
+                  f"{np.percentile(col(name(k, T)), 10) / one_median:.2f}")
+            if args.liggghts:
+                a = q(col(name(k, T)) / col(name("liggghts", T)))
+                print(f"  {name(k, T)}/{name('liggghts', T)} per round {a[0]:.2f} {a[1]:.2f} {a[2]:.2f}")
+        if args.liggghts and args.liggghts_one:
+            a = q(col(name("liggghts", T)) / col("liggghts_1"))
+            print(f"  {name('liggghts', T)}/liggghts_1 per round {a[0]:.2f} {a[1]:.2f} {a[2]:.2f}")
     # The host's two placements of the vCPUs (docs/performance.md): near (a shared L3, ping-pong
     # ~40 ns) and far (~190 ns); the probe runs at the start of its round.
     far = col("pingpong_ns") > 120
-    for name, sel in (("near", ~far), ("far", far)):
+    keys = ["one"] + [name(k, T) for T in threads for k in partitions + (["liggghts"] if args.liggghts else [])]
+    for label, sel in (("near", ~far), ("far", far)):
         if sel.any():
-            print(f"  {name} rounds ({sel.sum()}): median " + ", ".join(
-                f"{k} {np.median(col(k)[sel]) / 1e6:.2f}" for k in ["one", "dynamic", "fixed", "owner"]
-                + (["liggghts"] if args.liggghts else [])) + " M")
+            print(f"  {label} rounds ({sel.sum()}): median " + ", ".join(
+                f"{k} {np.median(col(k)[sel]) / 1e6:.2f}" for k in keys) + " M")
     a = q(col("alu_ratio"))
-    print(f"  register-only {T}/1 ratio {a[0]:.2f} {a[1]:.2f} {a[2]:.2f}; ping-pong ns "
+    print(f"  register-only {max(threads)}/1 ratio {a[0]:.2f} {a[1]:.2f} {a[2]:.2f}; ping-pong ns "
           + " ".join(f"{x:.0f}" for x in q(col('pingpong_ns'))))
     quiet = [row for row in rows if max(v for k, v in row.items() if k.endswith("_foreign")) < 0.1]
     print(f"  rounds with no other process above 0.1 CPU: {len(quiet)} of {len(rows)}")
