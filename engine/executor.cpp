@@ -12,6 +12,7 @@
 #include <algorithm>
 #include <array>
 #include <atomic>
+#include <cstdint>
 #include <cstdlib>
 #include <string>
 #include <thread>
@@ -90,18 +91,74 @@ Executor::Shares Executor::shares(std::size_t n, std::size_t grain) const {
   return out;
 }
 
-void Executor::run_owned(int t, FunctionRef<void(int)> share) {
-  // A task runs its own thread's share if no one has, else the first share left. Every share runs
-  // once, whoever runs it: the chunks, and so the results, are the same.
+namespace {
+
+// A share's chunks not yet claimed: [front, back), both in one word so that the owner (from the
+// front) and a thief (from the back) claim with one compare-exchange and never the same chunk.
+// One cache line each: the owner claims every chunk of its own share, the others only read it
+// until they run out of work.
+struct alignas(64) ShareClaims {
+  std::uint64_t word;  // not initialized: run_owned stores the shares it uses (no 16 KB cleared per pass)
+  static constexpr std::uint64_t pack(std::uint32_t front, std::uint32_t back) {
+    return std::uint64_t{back} << 32 | front;
+  }
+  std::atomic_ref<std::uint64_t> range() { return std::atomic_ref<std::uint64_t>(word); }
+  // Claims the first (front) or last (back) chunk left; -1 when none is left.
+  std::int64_t claim(bool from_front) {
+    std::uint64_t r = range().load(std::memory_order_relaxed);
+    for (;;) {
+      const std::uint32_t front = static_cast<std::uint32_t>(r), back = static_cast<std::uint32_t>(r >> 32);
+      if (front >= back) return -1;
+      const std::uint64_t next = from_front ? pack(front + 1, back) : pack(front, back - 1);
+      if (range().compare_exchange_weak(r, next, std::memory_order_relaxed)) return from_front ? front : back - 1;
+    }
+  }
+  std::uint32_t left() {
+    const std::uint64_t r = range().load(std::memory_order_relaxed);
+    const std::uint32_t front = static_cast<std::uint32_t>(r), back = static_cast<std::uint32_t>(r >> 32);
+    return front < back ? back - front : 0;
+  }
+};
+
+}  // namespace
+
+void Executor::run_owned(int t, const std::size_t* chunks, FunctionRef<void(int, std::size_t)> chunk) {
+  // A task takes its own thread's share if no one has, else the first share left, and runs its
+  // chunks from the front; then, while any share has chunks left, it claims the last chunk of the
+  // share with the most left. A thread keeps its own particles and pairs every pass, and a thread
+  // that starts late (a worker slow to wake, a vCPU the host took away) or a share heavier than the
+  // others no longer holds the whole pass back: the others finish its tail. Every chunk runs once,
+  // whoever runs it, with the same bounds: the results are the same.
   std::array<std::atomic<bool>, k_max_shares> taken{};
+  std::array<ShareClaims, k_max_shares> claims;
+  for (int k = 0; k < t; ++k)
+    claims[static_cast<std::size_t>(k)].word = ShareClaims::pack(0, static_cast<std::uint32_t>(chunks[k]));
   impl_->arena.execute([&] {
     tbb::parallel_for(
         0, t,
         [&](int) {
           const int me = tbb::this_task_arena::current_thread_index();
-          if (me >= 0 && me < t && !taken[static_cast<std::size_t>(me)].exchange(true)) return share(me);
-          for (int k = 0; k < t; ++k)
-            if (!taken[static_cast<std::size_t>(k)].exchange(true)) return share(k);
+          int own = -1;
+          if (me >= 0 && me < t && !taken[static_cast<std::size_t>(me)].exchange(true))
+            own = me;
+          else
+            for (int k = 0; k < t && own < 0; ++k)
+              if (!taken[static_cast<std::size_t>(k)].exchange(true)) own = k;
+          if (own >= 0)
+            for (std::int64_t c; (c = claims[static_cast<std::size_t>(own)].claim(true)) >= 0;)
+              chunk(own, static_cast<std::size_t>(c));
+          for (;;) {
+            int victim = -1;
+            std::uint32_t most = 0;
+            for (int k = 0; k < t; ++k)
+              if (const std::uint32_t left = claims[static_cast<std::size_t>(k)].left(); left > most) {
+                most = left;
+                victim = k;
+              }
+            if (victim < 0) return;
+            if (const std::int64_t c = claims[static_cast<std::size_t>(victim)].claim(false); c >= 0)
+              chunk(victim, static_cast<std::size_t>(c));
+          }
         },
         tbb::static_partitioner());
   });
@@ -113,9 +170,11 @@ void Executor::parallel_for_shares(const Shares& cut, std::size_t grain,
   SANDCELL_ASSERT(cut.count >= 1 && cut.count <= k_max_shares, "parallel_for_shares: bad share count");
   const auto chunks_of = [&](std::size_t k) { return (cut.bounds[k + 1] - cut.bounds[k] + grain - 1) / grain; };
   if (partition_ == Partition::owner && backend_ != Backend::serial && cut.count > 1) {
-    run_owned(static_cast<int>(cut.count), [&](int k) {
-      const std::size_t end = cut.bounds[k + 1];
-      for (std::size_t b = cut.bounds[k]; b < end; b += grain) body(b, std::min(end, b + grain));
+    std::array<std::size_t, k_max_shares> chunks;
+    for (std::size_t k = 0; k < cut.count; ++k) chunks[k] = chunks_of(k);
+    run_owned(static_cast<int>(cut.count), chunks.data(), [&](int k, std::size_t c) {
+      const std::size_t b = cut.bounds[static_cast<std::size_t>(k)] + c * grain;
+      body(b, std::min(cut.bounds[static_cast<std::size_t>(k) + 1], b + grain));
     });
     return;
   }

@@ -19,10 +19,12 @@ enum class Backend { serial, tbb };
 /// How parallel_for hands its chunks to the threads (every result is the same either way).
 enum class Partition {
   owner,    // default: the range cut into one contiguous share per thread (Executor::shares), share k
-            // run by the arena's thread k whenever it is there to take it (the others take what is
-            // left): every pass, a thread keeps the same particles and the pairs of those particles,
-            // and what crosses between shares goes through the contact pass's halo
-            // (systems/halo.hpp), so a core reads another's data only as packed copies
+            // run from its front by the arena's thread k whenever it is there to take it (the others
+            // take what is left), and a thread done with its share takes the last chunks of the
+            // share with the most left: every pass, a thread keeps the same particles and the pairs
+            // of those particles, what crosses between shares goes through the contact pass's halo
+            // (systems/halo.hpp), so a core reads another's data only as packed copies, and a late
+            // or slow thread's tail is finished by the others
   dynamic,  // work stealing, one chunk at a time: balances uneven chunks and a core slowed by others,
             // but a thread's particles and pairs change from pass to pass
   fixed,    // TBB's static_partitioner over the chunks (no halo)
@@ -116,9 +118,10 @@ class Executor {
   Partition partition_ = Partition::owner;
   int threads_;
   std::unique_ptr<Impl> impl_;
-  // Runs share(k) for k in [0, t) under the owner partition: share k on the arena's thread k when
-  // it comes to take it, each share exactly once.
-  void run_owned(int t, FunctionRef<void(int)> share);
+  // Runs chunk(k, c) for every chunk c < chunks[k] of every share k < t under the owner partition:
+  // share k from its front on the arena's thread k when it comes to take it, the last chunks left
+  // by whichever thread has run out of its own; each chunk exactly once.
+  void run_owned(int t, const std::size_t* chunks, FunctionRef<void(int, std::size_t)> chunk);
 };
 
 }  // namespace sandcell

@@ -5,10 +5,13 @@
 #include <doctest/doctest.h>
 
 #include <algorithm>
+#include <atomic>
+#include <chrono>
 #include <cmath>
 #include <cstdlib>
 #include <cstring>
 #include <string>
+#include <thread>
 
 #include <sched.h>
 #include <random>
@@ -77,6 +80,39 @@ TEST_CASE("parallel_for_shares visits every index of any ascending shares once, 
   std::size_t visited = 0;
   serial.parallel_for_shares(shares, 100, [&](std::size_t b, std::size_t e) { visited += e - b; });
   CHECK(visited == 1001);
+}
+
+TEST_CASE("owner partition: a thread done with its share finishes the tail of a share whose thread is held up") {
+  // Share 0's first chunk blocks its thread until every other chunk of share 0 has run, which only
+  // the owner partition's stealing from the back lets other threads do: without it the pass would
+  // wait for the whole share on the held-up thread, and this test fails at the deadline. The chunks
+  // stay those of the shares: each index once, each chunk at the grain from its share's start.
+  for (int threads : {2, 3}) {
+    CAPTURE(threads);
+    Executor exec({Backend::tbb, threads, Partition::owner});
+    const std::size_t n = 64 * 40;
+    const Executor::Shares shares = exec.shares(n, 64);
+    REQUIRE(shares.count == static_cast<std::size_t>(threads));
+    const std::size_t first_chunks = (shares.bounds[1] + 63) / 64;
+    REQUIRE(first_chunks > 2);
+    std::vector<std::atomic<int>> hits(n);
+    std::atomic<std::size_t> done_in_first{0};
+    bool in_time = true;
+    exec.parallel_for(n, 64, [&](std::size_t b, std::size_t e) {
+      CHECK(b % 64 == 0);
+      for (std::size_t q = b; q < e; ++q) hits[q].fetch_add(1);
+      if (b == 0) {
+        const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(20);
+        while (done_in_first.load() < first_chunks - 1 && std::chrono::steady_clock::now() < deadline)
+          std::this_thread::yield();
+        in_time = done_in_first.load() == first_chunks - 1;
+      } else if (b < shares.bounds[1]) {
+        done_in_first.fetch_add(1);
+      }
+    });
+    CHECK(in_time);
+    for (std::size_t q = 0; q < n; ++q) REQUIRE(hits[q].load() == 1);
+  }
 }
 
 TEST_CASE("deterministic_reduce gives the same bits for the serial backend and 1, 2, 3, 8 threads, any partition") {
