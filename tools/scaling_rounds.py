@@ -92,7 +92,8 @@ def main():
     partitions = args.partitions.split(",")
     if args.rounds < 1 or min(threads) < 2 or args.steps < 1 or args.minutes < 0:
         sys.exit("--rounds >= 1, --threads >= 2 (each), --steps >= 1, --minutes >= 0")
-    if not partitions or any(p not in ("owner", "dynamic", "fixed") for p in partitions) or len(set(partitions)) != len(partitions):
+    known = ("owner", "dynamic", "fixed")
+    if not partitions or any(p not in known for p in partitions) or len(set(partitions)) != len(partitions):
         sys.exit(f"--partitions {args.partitions}: a comma-separated list of distinct owner, dynamic, fixed")
     if not os.access(args.bench, os.X_OK):
         sys.exit(f"--bench {args.bench}: not an executable (build first)")
