@@ -102,12 +102,14 @@ struct alignas(64) ShareClaims {
   static constexpr std::uint64_t pack(std::uint32_t front, std::uint32_t back) {
     return std::uint64_t{back} << 32 | front;
   }
+  static constexpr std::uint32_t front_of(std::uint64_t r) { return static_cast<std::uint32_t>(r); }
+  static constexpr std::uint32_t back_of(std::uint64_t r) { return static_cast<std::uint32_t>(r >> 32); }
   std::atomic_ref<std::uint64_t> range() { return std::atomic_ref<std::uint64_t>(word); }
   // Claims the first (front) or last (back) chunk left; -1 when none is left.
   std::int64_t claim(bool from_front) {
     std::uint64_t r = range().load(std::memory_order_relaxed);
     for (;;) {
-      const std::uint32_t front = static_cast<std::uint32_t>(r), back = static_cast<std::uint32_t>(r >> 32);
+      const std::uint32_t front = front_of(r), back = back_of(r);
       if (front >= back) return -1;
       const std::uint64_t next = from_front ? pack(front + 1, back) : pack(front, back - 1);
       if (range().compare_exchange_weak(r, next, std::memory_order_relaxed)) return from_front ? front : back - 1;
@@ -115,8 +117,7 @@ struct alignas(64) ShareClaims {
   }
   std::uint32_t left() {
     const std::uint64_t r = range().load(std::memory_order_relaxed);
-    const std::uint32_t front = static_cast<std::uint32_t>(r), back = static_cast<std::uint32_t>(r >> 32);
-    return front < back ? back - front : 0;
+    return front_of(r) < back_of(r) ? back_of(r) - front_of(r) : 0;
   }
 };
 

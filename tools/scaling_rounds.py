@@ -104,8 +104,7 @@ def main():
     if args.liggghts:
         if not shutil.which("liggghts") or not shutil.which("mpirun"):
             sys.exit("--liggghts: liggghts and mpirun must be installed (apt-get install liggghts)")
-        subprocess.run(["/usr/bin/python3" if os.path.exists("/usr/bin/python3") else sys.executable,
-                        os.path.join(ROOT, "tools", "liggghts", "packing2data.py"),
+        subprocess.run([sys.executable, os.path.join(ROOT, "tools", "liggghts", "packing2data.py"),
                         os.path.join(ROOT, "apps", "dem-bench", "scenes", "dense-20k.txt"),
                         os.path.join(work, "dense-20k.data")], check=True)
     os.makedirs(os.path.dirname(os.path.abspath(args.csv)), exist_ok=True)
