@@ -528,6 +528,28 @@ void check_shear_for_tests(const Config& c, const std::string& source) {
                       ": must be below shear.max_axial_strain = " + num(c.shear.max_axial_strain));
 }
 
+// A preparation with friction (or rolling friction) must step at most 0.2 Rayleigh times. The
+// Rayleigh time does not see the contacts stiffen under pressure, and a frictional contact's
+// tangential spring acts on the spheres' rotation too, a stiffer mode than the normal one. Measured
+// at 1,000 spheres with prepare.friction = 0.25 (docs/physics.md, "Time step"): at 0.5 t_R the
+// chained preparation to 16 MPa never came to rest (unbalanced force ratio 0.4 after 8e5 steps, the
+// sample compacting to a frictionless density), at 0.3 t_R the one to 4 MPa (restitution 0.29),
+// while at 0.2 t_R all of 0.5, 4 and 16 MPa converged in 1e5 steps or fewer.
+constexpr double k_frictional_prepare_dt = 0.2;
+
+void check_prepare_step(const Config& c, const std::string& source) {
+  const PrepareConfig& p = c.prepare;
+  if (!(p.friction > 0.0) && !(p.rolling_friction > 0.0)) return;
+  const bool own = p.dt_fraction > 0.0;
+  const double f = own ? p.dt_fraction : c.dt_fraction;
+  if (f <= k_frictional_prepare_dt) return;
+  const std::string key = own ? "prepare.dt_fraction" : "time.dt_fraction";
+  const std::string why = p.friction > 0.0 ? "prepare.friction = " + num(p.friction)
+                                           : "prepare.rolling_friction = " + num(p.rolling_friction);
+  throw ConfigError(source + ": " + key + " = " + num(f) + " with " + why +
+                    ": a frictional preparation needs prepare.dt_fraction <= 0.2 (above, it never comes to rest)");
+}
+
 }  // namespace
 
 Config parse_config(const std::string& text, const std::string& source) {
@@ -546,6 +568,7 @@ Config parse_config(const std::string& text, const std::string& source) {
   parse_tests(root, source, c);
   parse_output(root, source, c.output);
   check_shear_for_tests(c, source);
+  check_prepare_step(c, source);
   return c;
 }
 

@@ -173,6 +173,9 @@ TEST_CASE("triaxial: each class of bad input exits 2 naming the key, and clobber
       {"a non-positive inertial number",
        std::string(base).replace(base.find("strain_rate = 2.0"), 17, "inertial_number = 0.0"),
        "shear.inertial_number = 0: must be in (0, 0.1]"},
+      // Measured: at 0.3 and 0.5 t_R a preparation with friction never came to rest (config.cpp).
+      {"a frictional preparation at a long step", with("prepare", "friction = 0.25\ndt_fraction = 0.5"),
+       "prepare.dt_fraction = 0.5 with prepare.friction = 0.25: a frictional preparation needs prepare.dt_fraction <= 0.2"},
       {"neither an axial rate nor an inertial number",
        std::string(base).replace(base.find("strain_rate = 2.0"), 17, ""),
        "shear.strain_rate and shear.inertial_number: neither is given"},
