@@ -13,6 +13,7 @@ its mean and standard error over the seeds.
     tools/ec_vs_b.py [--count 1000] [--seeds 1,2,3,4,5,6,7,8] [--mu-r 0.064] [--p0 2e6]
         [--friction MU] [--rolling MODEL] [--b1-inertial I]
         [--out results/ec-vs-b] [--docs docs/calibration/ec-vs-b] [--threads 2]
+    tools/ec_vs_b.py --calibration results/calibrate-full/runs.csv --docs docs/calibration/full
 
 --b1-inertial shears only the b = 1 test at another inertial number (its b = 0 partner is reused):
 at b = 1 the deviatoric strain grows about twice as fast as eps_1, so I / 2 gives both tests the
@@ -195,6 +196,36 @@ def write(docs, rows, gap_rows):
     print(f"wrote {docs}/tests.csv, gap.csv, ec-vs-b.png")
 
 
+def calibration_gaps(runs_csv, docs):
+    """The b = 1 - b = 0 gap in final e at each p0 of every run of a calibration whose tests include
+    both (calibrate-full.toml), and its Spearman rho with each free parameter."""
+    from sandcell_analysis.analyze import spearman
+    rows = list(csv.DictReader(open(runs_csv)))
+    pat = re.compile(r"final_e:p-b0\.00-p0_(\d+)kPa$")
+    p0s = [m[1] for m in (pat.match(k) for k in rows[0]) if m and f"final_e:p-b1.00-p0_{m[1]}kPa" in rows[0]]
+    params = [k for k in rows[0] if "." in k and not k.startswith("final") and k != "run"]
+    out = []
+    for r in rows:
+        gaps = [float(r[f"final_e:p-b1.00-p0_{p}kPa"]) - float(r[f"final_e:p-b0.00-p0_{p}kPa"]) for p in p0s]
+        out.append(dict(run=r["run"], **{k: float(r[k]) for k in params},
+                        **{f"gap_{p}kPa": g for p, g in zip(p0s, gaps)}, mean_gap=float(np.mean(gaps))))
+    os.makedirs(docs, exist_ok=True)
+    with open(os.path.join(docs, "gap-vs-parameters.csv"), "w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=list(out[0].keys()))
+        w.writeheader()
+        for r in out:
+            w.writerow({k: (f"{v:.6g}" if isinstance(v, float) else v) for k, v in r.items()})
+    m = np.array([r["mean_gap"] for r in out])
+    print(f"{len(out)} runs: mean gap over p0 {m.mean():+.4f} (min {m.min():+.4f}, max {m.max():+.4f}); "
+          f"runs with a positive mean gap: {(m > 0).sum()} of {len(m)}")
+    for p in p0s:
+        g = np.array([r[f"gap_{p}kPa"] for r in out])
+        print(f"  p0 {p} kPa: mean {g.mean():+.4f} +- {g.std(ddof=1) / np.sqrt(len(g)):.4f} (s.e.)")
+    for k in params:
+        print(f"  rho({k}, mean gap) = {spearman(np.array([r[k] for r in out]), m):+.2f}")
+    print(f"wrote {docs}/gap-vs-parameters.csv")
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--count", default="1000")
@@ -208,8 +239,12 @@ def main():
     ap.add_argument("--b1-inertial", type=float, help="shear.inertial_number of the b = 1 test only")
     ap.add_argument("--threads", type=int, default=2)
     ap.add_argument("--no-run", action="store_true", help="only collect what OUT holds")
+    ap.add_argument("--calibration", metavar="RUNS_CSV",
+                    help="no runs: the gap in every run of a calibration with b = 0 and b = 1 tests (its runs.csv)")
     ap.add_argument("--triaxial", default=os.path.join(ROOT, "build", "release", "apps", "triaxial", "triaxial"))
     args = ap.parse_args()
+    if args.calibration:
+        return calibration_gaps(args.calibration, args.docs)
     base = tomllib.load(open(os.path.join(ROOT, "apps", "triaxial", "configs", "paper-calibrated-reduced.toml"), "rb"))
     if not args.no_run:
         run_all(args, base)
