@@ -531,10 +531,10 @@ void check_shear_for_tests(const Config& c, const std::string& source) {
 // A preparation with friction (or rolling friction) must step at most 0.2 Rayleigh times. The
 // Rayleigh time does not see the contacts stiffen under pressure, and a frictional contact's
 // tangential spring acts on the spheres' rotation too, a stiffer mode than the normal one. Measured
-// at 1,000 spheres with prepare.friction = 0.25 (docs/physics.md, "Time step"): at 0.5 t_R the
+// at 1,000 spheres with prepare.friction = 0.25 (docs/physics.md section 4): at 0.5 t_R the
 // chained preparation to 16 MPa never came to rest (unbalanced force ratio 0.4 after 8e5 steps, the
-// sample compacting to a frictionless density), at 0.3 t_R the one to 4 MPa (restitution 0.29),
-// while at 0.2 t_R all of 0.5, 4 and 16 MPa converged in 1e5 steps or fewer.
+// sample compacting to a frictionless density); at 0.3 t_R neither did the one to 4 MPa
+// (restitution 0.29); at 0.2 t_R all of 0.5, 4 and 16 MPa converged in 1e5 steps or fewer.
 constexpr double k_frictional_prepare_dt = 0.2;
 
 void check_prepare_step(const Config& c, const std::string& source) {
