@@ -12,10 +12,15 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstring>
 #include <limits>
 #include <stdexcept>
 #include <string>
 #include <type_traits>
+
+#if defined(__AVX2__)
+#include <immintrin.h>
+#endif
 
 namespace sandcell {
 
@@ -341,6 +346,271 @@ struct ContactKernel {
     }
   }
 
+#if defined(__AVX2__)
+  // Phase 3 for four touching pairs at once, in the lanes of AVX2 registers: the default laws
+  // (Hertz, Mindlin with history, epsd2 or no rolling). Each lane does the scalar visit's
+  // operations in the scalar visit's order (sums of three as Eigen reduces a 3-vector: the first
+  // two, then the third), and IEEE arithmetic is correctly rounded in vector form, so a pair's
+  // result is bitwise the one of visit() (dem-bench's digest, and the portable build without this
+  // path, and tests/systems/test_contact_lanes.cpp, check it). Where a lane is at a cap, both
+  // outcomes are computed and each lane's is selected; the square roots and divisions of the caps
+  // are skipped when no lane is (in a block sorted by regime, most groups). docs/performance.md
+  // gives the measured effect.
+  static constexpr bool k_lanes = std::is_same_v<Normal, Hertz> && std::is_same_v<Tangential, MindlinHistory> &&
+                                  (Roll == RollingModel::epsd2 || Roll == RollingModel::none);
+  using V = double __attribute__((vector_size(32)));
+  using L = long long __attribute__((vector_size(32)));
+
+  static V sum3(V a, V b, V c) { return (a + b) + c; }
+  static V vabs(V a) { return (V)((L)a & L{~(1ll << 63), ~(1ll << 63), ~(1ll << 63), ~(1ll << 63)}); }
+  static V vsqrt(V a) { return (V)_mm256_sqrt_pd((__m256d)a); }
+  static V sel(L m, V a, V b) { return m ? a : b; }
+  static bool any(L m) { return _mm256_movemask_pd((__m256d)m) != 0; }
+  // Four consecutive 3-vectors (12 doubles) as three vectors of x, y and z, and back.
+  static void load_xyz(const Vec3* p, V& x, V& y, V& z) {
+    V a0, a1, a2;  // x0 y0 z0 x1 | y1 z1 x2 y2 | z2 x3 y3 z3
+    std::memcpy(&a0, p[0].data(), sizeof a0);
+    std::memcpy(&a1, p[0].data() + 4, sizeof a1);
+    std::memcpy(&a2, p[0].data() + 8, sizeof a2);
+    x = __builtin_shuffle(__builtin_shuffle(a0, a1, L{0, 3, 6, 7}), a2, L{0, 1, 2, 5});
+    y = __builtin_shuffle(__builtin_shuffle(a0, a1, L{1, 4, 7, 7}), a2, L{0, 1, 2, 6});
+    z = __builtin_shuffle(__builtin_shuffle(a0, a1, L{2, 5, 5, 5}), a2, L{0, 1, 4, 7});
+  }
+  static void store_xyz(Vec3* p, V x, V y, V z) {
+    const V a0 = __builtin_shuffle(__builtin_shuffle(x, y, L{0, 4, 1, 1}), z, L{0, 1, 4, 2});
+    const V a1 = __builtin_shuffle(__builtin_shuffle(x, y, L{2, 5, 2, 6}), z, L{1, 5, 0, 3});
+    const V a2 = __builtin_shuffle(__builtin_shuffle(x, y, L{3, 3, 3, 7}), z, L{6, 0, 3, 7});
+    std::memcpy(p[0].data(), &a0, sizeof a0);
+    std::memcpy(p[0].data() + 4, &a1, sizeof a1);
+    std::memcpy(p[0].data() + 8, &a2, sizeof a2);
+  }
+
+  // Contig: the four are consecutive pairs (tt[0] + l), whose per-pair arrays load as vectors;
+  // OneMaterial: one material pair, whose constants are broadcast.
+  template <bool G, bool Contig, bool OneMaterial>
+  void visit4(const Block& blk, std::size_t k0, const std::uint8_t* tt, unsigned& changed) const {
+    std::size_t k[4];
+    const Vec3* vi[4];
+    const Vec3* vj[4];
+    const Vec3* wi[4];
+    const Vec3* wj[4];
+    [[maybe_unused]] const PairMaterial* mt[4];
+    for (int l = 0; l < 4; ++l) {
+      k[l] = k0 + tt[l];
+      const std::uint32_t i = d.pi[k[l]], jh = d.pjh[k[l]];
+      vi[l] = &d.v[i];
+      vj[l] = &of_j<G>(d.v, d.gv, jh);
+      wi[l] = &d.w[i];
+      wj[l] = &of_j<G>(d.w, d.gw, jh);
+      if constexpr (!OneMaterial) mt[l] = blk.mat[tt[l]];
+    }
+#define SANDCELL_LANES(expr) V{[&](int l) { return (expr); }(0), [&](int l) { return (expr); }(1), \
+                               [&](int l) { return (expr); }(2), [&](int l) { return (expr); }(3)}
+    // A block array's lanes, and a per-pair array's.
+    const auto of_block = [&](const double* a) {
+      if constexpr (Contig) {
+        V x;
+        std::memcpy(&x, a + tt[0], sizeof x);
+        return x;
+      } else {
+        return SANDCELL_LANES(a[tt[l]]);
+      }
+    };
+    const auto of_pair = [&](const double* a) {
+      if constexpr (Contig) {
+        V x;
+        std::memcpy(&x, a + k[0], sizeof x);
+        return x;
+      } else {
+        return SANDCELL_LANES(a[k[l]]);
+      }
+    };
+    const auto of_mat = [&](double PairMaterial::*f) {
+      if constexpr (OneMaterial) {
+        const double x = d.pair_mat[0].*f;
+        return V{x, x, x, x};
+      } else {
+        return SANDCELL_LANES(mt[l]->*f);
+      }
+    };
+    const V rx = of_block(blk.rx), ry = of_block(blk.ry), rz = of_block(blk.rz);
+    const V inv = of_block(blk.inv_dist);
+    const V ov = of_block(blk.overlap);
+    const V k_n = of_block(blk.k_n), k_t = of_block(blk.k_t);
+    const V gamma_n = of_block(blk.gamma_n);
+    const V nx = rx * inv, ny = ry * inv, nz = rz * inv;
+    const V c_i = of_pair(d.r_i) - 0.5 * ov;
+    const V c_j = of_pair(d.r_j) - 0.5 * ov;
+    V vx = SANDCELL_LANES((*vi[l])[0]) - SANDCELL_LANES((*vj[l])[0]);
+    V vy = SANDCELL_LANES((*vi[l])[1]) - SANDCELL_LANES((*vj[l])[1]);
+    V vz = SANDCELL_LANES((*vi[l])[2]) - SANDCELL_LANES((*vj[l])[2]);
+    if constexpr (Affine) {
+      vx += d.rate[0] * rx;
+      vy += d.rate[1] * ry;
+      vz += d.rate[2] * rz;
+    }
+    const V wix = SANDCELL_LANES((*wi[l])[0]), wiy = SANDCELL_LANES((*wi[l])[1]), wiz = SANDCELL_LANES((*wi[l])[2]);
+    const V wjx = SANDCELL_LANES((*wj[l])[0]), wjy = SANDCELL_LANES((*wj[l])[1]), wjz = SANDCELL_LANES((*wj[l])[2]);
+    const V friction = of_mat(&PairMaterial::friction);
+    const V damping_t = of_mat(&PairMaterial::damping_ratio_t);
+    const V v_n = sum3(vx * nx, vy * ny, vz * nz);
+    const V f_n = k_n * ov - gamma_n * v_n;
+    // v_t = v_rel - v_n n + n x (c_i w_i + c_j w_j)
+    const V ux = c_i * wix + c_j * wjx, uy = c_i * wiy + c_j * wjy, uz = c_i * wiz + c_j * wjz;
+    const V vtx = (vx - v_n * nx) + (ny * uz - nz * uy);
+    const V vty = (vy - v_n * ny) + (nz * ux - nx * uz);
+    const V vtz = (vz - v_n * nz) + (nx * uy - ny * ux);
+    const V f_cap = friction * vabs(f_n);
+    const V gamma_t = gamma_n * damping_t;
+    // Mindlin with history
+    V hx, hy, hz;
+    if constexpr (Contig) {
+      load_xyz(d.hist_t + k[0], hx, hy, hz);
+    } else {
+      hx = SANDCELL_LANES(d.hist_t[k[l]][0]);
+      hy = SANDCELL_LANES(d.hist_t[k[l]][1]);
+      hz = SANDCELL_LANES(d.hist_t[k[l]][2]);
+    }
+    if constexpr (Update) {
+      hx += vtx * d.dt;
+      hy += vty * d.dt;
+      hz += vtz * d.dt;
+    }
+    const V hn = sum3(hx * nx, hy * ny, hz * nz);
+    hx -= hn * nx;
+    hy -= hn * ny;
+    hz -= hn * nz;
+    const V mk_t = -k_t;
+    V ftx = mk_t * hx, fty = mk_t * hy, ftz = mk_t * hz;
+    const V f2 = sum3(ftx * ftx, fty * fty, ftz * ftz);
+    const L t_cap = f2 > f_cap * f_cap;
+    // The caps' square roots and divisions only where a lane is capped: in a group sorted by
+    // regime, seldom.
+    if (any(t_cap)) [[unlikely]] {
+      const V scale = f_cap / vsqrt(f2);
+      const V ctx = ftx * scale, cty = fty * scale, ctz = ftz * scale;
+      hx = sel(t_cap, ctx / mk_t, hx);
+      hy = sel(t_cap, cty / mk_t, hy);
+      hz = sel(t_cap, ctz / mk_t, hz);
+      ftx = sel(t_cap, ctx, ftx - gamma_t * vtx);
+      fty = sel(t_cap, cty, fty - gamma_t * vty);
+      ftz = sel(t_cap, ctz, ftz - gamma_t * vtz);
+    } else {
+      ftx -= gamma_t * vtx;
+      fty -= gamma_t * vty;
+      ftz -= gamma_t * vtz;
+    }
+    // torques of the tangential force: -c n x F_t
+    const V ax = ny * ftz - nz * fty, ay = nz * ftx - nx * ftz, az = nx * fty - ny * ftx;
+    const V mc_i = -c_i, mc_j = -c_j;
+    V tix = mc_i * ax, tiy = mc_i * ay, tiz = mc_i * az;
+    V tjx = mc_j * ax, tjy = mc_j * ay, tjz = mc_j * az;
+    L r_cap = L{0, 0, 0, 0};
+    V gx, gy, gz;
+    if constexpr (Roll == RollingModel::epsd2) {
+      const V mu_r = of_mat(&PairMaterial::rolling_friction);
+      const V r_star = of_pair(d.r_star);
+      V wx = wix - wjx, wy = wiy - wjy, wz = wiz - wjz;
+      const V wn = sum3(wx * nx, wy * ny, wz * nz);
+      wx -= wn * nx;
+      wy -= wn * ny;
+      wz -= wn * nz;
+      const V k_r = k_t * r_star * r_star;
+      const V cap = mu_r * r_star * vabs(f_n);
+      if constexpr (Contig) {
+        load_xyz(d.hist_r + k[0], gx, gy, gz);
+      } else {
+        gx = SANDCELL_LANES(d.hist_r[k[l]][0]);
+        gy = SANDCELL_LANES(d.hist_r[k[l]][1]);
+        gz = SANDCELL_LANES(d.hist_r[k[l]][2]);
+      }
+      if constexpr (Update) {
+        const V kdt = k_r * d.dt;
+        gx += kdt * wx;
+        gy += kdt * wy;
+        gz += kdt * wz;
+      }
+      const V g2 = sum3(gx * gx, gy * gy, gz * gz);
+      r_cap = g2 > cap * cap;
+      if (any(r_cap)) [[unlikely]] {
+        const V rs = cap / vsqrt(g2);
+        gx = sel(r_cap, gx * rs, gx);
+        gy = sel(r_cap, gy * rs, gy);
+        gz = sel(r_cap, gz * rs, gz);
+      }
+      tix -= gx;
+      tiy -= gy;
+      tiz -= gz;
+      tjx += gx;
+      tjy += gy;
+      tjz += gz;
+    }
+    const V fx = f_n * nx + ftx, fy = f_n * ny + fty, fz = f_n * nz + ftz;
+#undef SANDCELL_LANES
+    if constexpr (Contig) {
+      store_xyz(d.force + k[0], fx, fy, fz);
+      store_xyz(d.torque_i + k[0], tix, tiy, tiz);
+      store_xyz(d.torque_j + k[0], tjx, tjy, tjz);
+      store_xyz(d.hist_t + k[0], hx, hy, hz);
+      if constexpr (Roll == RollingModel::epsd2) store_xyz(d.hist_r + k[0], gx, gy, gz);
+    }
+    for (int l = 0; l < 4; ++l) {
+      const std::size_t q = k[l];
+      if constexpr (!Contig) {
+        d.force[q] = Vec3(fx[l], fy[l], fz[l]);
+        d.torque_i[q] = Vec3(tix[l], tiy[l], tiz[l]);
+        d.torque_j[q] = Vec3(tjx[l], tjy[l], tjz[l]);
+        d.hist_t[q] = Vec3(hx[l], hy[l], hz[l]);
+        if constexpr (Roll == RollingModel::epsd2) d.hist_r[q] = Vec3(gx[l], gy[l], gz[l]);
+      }
+      const std::uint8_t now = static_cast<std::uint8_t>((t_cap[l] & 1) | (r_cap[l] & 2));
+      if (now != d.regime[q]) [[unlikely]] {
+        d.regime[q] = now;
+        changed = 1;
+      }
+    }
+  }
+#else
+  static constexpr bool k_lanes = false;
+#endif
+
+  // Phase 3 over the block in the order `at(u)`, u < nb: with the lanes, touching pairs in fours.
+  template <bool G, class At>
+  void phase3(const Block& blk, std::size_t k0, std::size_t nb, At at, unsigned& changed) const {
+#if defined(__AVX2__)
+    if constexpr (k_lanes) {
+      std::uint8_t four[4];
+      unsigned held = 0;
+      for (std::size_t u = 0; u < nb; ++u) {
+        const std::uint8_t t = at(u);
+        if (!(blk.overlap[t] > 0.0)) {
+          visit<G>(blk, k0, t, changed);
+          continue;
+        }
+        four[held++] = t;
+        if (held == 4) {
+          const bool contig = four[1] == four[0] + 1 && four[2] == four[0] + 2 && four[3] == four[0] + 3;
+          if (d.n_mat == 1) {
+            if (contig)
+              visit4<G, true, true>(blk, k0, four, changed);
+            else
+              visit4<G, false, true>(blk, k0, four, changed);
+          } else {
+            if (contig)
+              visit4<G, true, false>(blk, k0, four, changed);
+            else
+              visit4<G, false, false>(blk, k0, four, changed);
+          }
+          held = 0;
+        }
+      }
+      for (unsigned u = 0; u < held; ++u) visit<G>(blk, k0, four[u], changed);
+      return;
+    }
+#endif
+    for (std::size_t u = 0; u < nb; ++u) visit<G>(blk, k0, at(u), changed);
+  }
+
   // One block of pairs, all three phases; G: the block has pairs whose j is a ghost.
   template <bool G>
   void block(Block& blk, std::size_t k0, std::size_t nb) const {
@@ -356,9 +626,9 @@ struct ContactKernel {
     unsigned changed = 0;
     if (d.sorted[index]) {
       const std::uint8_t* __restrict order = d.order + k0;
-      for (std::size_t u = 0; u < nb; ++u) visit<G>(blk, k0, order[u], changed);
-    } else {
-      for (std::size_t t = 0; t < nb; ++t) visit<G>(blk, k0, t, changed);  // no pair at a cap: array order
+      phase3<G>(blk, k0, nb, [order](std::size_t u) { return order[u]; }, changed);
+    } else {  // no pair at a cap: array order
+      phase3<G>(blk, k0, nb, [](std::size_t u) { return static_cast<std::uint8_t>(u); }, changed);
     }
     d.stale[index] = changed != 0;
   }
