@@ -138,6 +138,8 @@ void check_pairs_alone_and_together(std::uint32_t materials, int threads) {
     const double f_t = (a.particles.force[i0] - a.particles.force[i0].dot(specs[k].dir) * specs[k].dir).norm();
     if (f_n > 0.0) ++touching;
     const double mu = 0.5 * (model.materials[specs[k].mat0].friction + model.materials[specs[k].mat1].friction);
+    // At the cap |F_t| = mu |F_n| up to the roundings of the projection above (~1e-15 relative),
+    // which 1e-9 absorbs; the count only checks that the scene has pairs on both sides of the cap.
     if (f_n > 0.0 && f_t >= mu * f_n * (1.0 - 1e-9)) ++capped;
   }
   // The scene exercises what it is meant to: whole groups of four touching pairs, and pairs on
