@@ -356,7 +356,9 @@ struct ContactKernel {
   // outcomes are computed and each lane's is selected; the square roots and divisions of the caps
   // are skipped when no lane is (in a block sorted by regime, most groups). docs/performance.md
   // gives the measured effect.
-  static constexpr bool k_lanes = std::is_same_v<Normal, Hertz> && std::is_same_v<Tangential, MindlinHistory> &&
+  // Not for the setup pass (Update false), which runs once per scene: fewer instantiations.
+  static constexpr bool k_lanes = Update && std::is_same_v<Normal, Hertz> &&
+                                  std::is_same_v<Tangential, MindlinHistory> &&
                                   (Roll == RollingModel::epsd2 || Roll == RollingModel::none);
   using V = double __attribute__((vector_size(32)));
   using L = long long __attribute__((vector_size(32)));
@@ -366,6 +368,11 @@ struct ContactKernel {
   static V vsqrt(V a) { return (V)_mm256_sqrt_pd((__m256d)a); }
   static V sel(L m, V a, V b) { return m ? a : b; }
   static bool any(L m) { return _mm256_movemask_pd((__m256d)m) != 0; }
+  // The four lanes f(0), ..., f(3).
+  template <class F>
+  static V lanes_of(F f) {
+    return V{f(0), f(1), f(2), f(3)};
+  }
   // Four consecutive 3-vectors (12 doubles) as three vectors of x, y and z, and back.
   static void load_xyz(const Vec3* p, V& x, V& y, V& z) {
     V a0, a1, a2;  // x0 y0 z0 x1 | y1 z1 x2 y2 | z2 x3 y3 z3
@@ -404,8 +411,6 @@ struct ContactKernel {
       wj[l] = &of_j<G>(d.w, d.gw, jh);
       if constexpr (!OneMaterial) mt[l] = blk.mat[tt[l]];
     }
-#define SANDCELL_LANES(expr) V{[&](int l) { return (expr); }(0), [&](int l) { return (expr); }(1), \
-                               [&](int l) { return (expr); }(2), [&](int l) { return (expr); }(3)}
     // A block array's lanes, and a per-pair array's.
     const auto of_block = [&](const double* a) {
       if constexpr (Contig) {
@@ -413,7 +418,7 @@ struct ContactKernel {
         std::memcpy(&x, a + tt[0], sizeof x);
         return x;
       } else {
-        return SANDCELL_LANES(a[tt[l]]);
+        return lanes_of([&](int l) { return a[tt[l]]; });
       }
     };
     const auto of_pair = [&](const double* a) {
@@ -422,7 +427,7 @@ struct ContactKernel {
         std::memcpy(&x, a + k[0], sizeof x);
         return x;
       } else {
-        return SANDCELL_LANES(a[k[l]]);
+        return lanes_of([&](int l) { return a[k[l]]; });
       }
     };
     const auto of_mat = [&](double PairMaterial::*f) {
@@ -430,7 +435,7 @@ struct ContactKernel {
         const double x = d.pair_mat[0].*f;
         return V{x, x, x, x};
       } else {
-        return SANDCELL_LANES(mt[l]->*f);
+        return lanes_of([&](int l) { return mt[l]->*f; });
       }
     };
     const V rx = of_block(blk.rx), ry = of_block(blk.ry), rz = of_block(blk.rz);
@@ -441,16 +446,18 @@ struct ContactKernel {
     const V nx = rx * inv, ny = ry * inv, nz = rz * inv;
     const V c_i = of_pair(d.r_i) - 0.5 * ov;
     const V c_j = of_pair(d.r_j) - 0.5 * ov;
-    V vx = SANDCELL_LANES((*vi[l])[0]) - SANDCELL_LANES((*vj[l])[0]);
-    V vy = SANDCELL_LANES((*vi[l])[1]) - SANDCELL_LANES((*vj[l])[1]);
-    V vz = SANDCELL_LANES((*vi[l])[2]) - SANDCELL_LANES((*vj[l])[2]);
+    // Component c of four particles' 3-vectors.
+    const auto comp = [](const Vec3* const* p, int c) { return lanes_of([&](int l) { return (*p[l])[c]; }); };
+    V vx = comp(vi, 0) - comp(vj, 0);
+    V vy = comp(vi, 1) - comp(vj, 1);
+    V vz = comp(vi, 2) - comp(vj, 2);
     if constexpr (Affine) {
       vx += d.rate[0] * rx;
       vy += d.rate[1] * ry;
       vz += d.rate[2] * rz;
     }
-    const V wix = SANDCELL_LANES((*wi[l])[0]), wiy = SANDCELL_LANES((*wi[l])[1]), wiz = SANDCELL_LANES((*wi[l])[2]);
-    const V wjx = SANDCELL_LANES((*wj[l])[0]), wjy = SANDCELL_LANES((*wj[l])[1]), wjz = SANDCELL_LANES((*wj[l])[2]);
+    const V wix = comp(wi, 0), wiy = comp(wi, 1), wiz = comp(wi, 2);
+    const V wjx = comp(wj, 0), wjy = comp(wj, 1), wjz = comp(wj, 2);
     const V friction = of_mat(&PairMaterial::friction);
     const V damping_t = of_mat(&PairMaterial::damping_ratio_t);
     const V v_n = sum3(vx * nx, vy * ny, vz * nz);
@@ -467,9 +474,9 @@ struct ContactKernel {
     if constexpr (Contig) {
       load_xyz(d.hist_t + k[0], hx, hy, hz);
     } else {
-      hx = SANDCELL_LANES(d.hist_t[k[l]][0]);
-      hy = SANDCELL_LANES(d.hist_t[k[l]][1]);
-      hz = SANDCELL_LANES(d.hist_t[k[l]][2]);
+      hx = lanes_of([&](int l) { return d.hist_t[k[l]][0]; });
+      hy = lanes_of([&](int l) { return d.hist_t[k[l]][1]; });
+      hz = lanes_of([&](int l) { return d.hist_t[k[l]][2]; });
     }
     if constexpr (Update) {
       hx += vtx * d.dt;
@@ -520,9 +527,9 @@ struct ContactKernel {
       if constexpr (Contig) {
         load_xyz(d.hist_r + k[0], gx, gy, gz);
       } else {
-        gx = SANDCELL_LANES(d.hist_r[k[l]][0]);
-        gy = SANDCELL_LANES(d.hist_r[k[l]][1]);
-        gz = SANDCELL_LANES(d.hist_r[k[l]][2]);
+        gx = lanes_of([&](int l) { return d.hist_r[k[l]][0]; });
+        gy = lanes_of([&](int l) { return d.hist_r[k[l]][1]; });
+        gz = lanes_of([&](int l) { return d.hist_r[k[l]][2]; });
       }
       if constexpr (Update) {
         const V kdt = k_r * d.dt;
@@ -546,7 +553,6 @@ struct ContactKernel {
       tjz += gz;
     }
     const V fx = f_n * nx + ftx, fy = f_n * ny + fty, fz = f_n * nz + ftz;
-#undef SANDCELL_LANES
     if constexpr (Contig) {
       store_xyz(d.force + k[0], fx, fy, fz);
       store_xyz(d.torque_i + k[0], tix, tiy, tiz);
@@ -626,9 +632,11 @@ struct ContactKernel {
     unsigned changed = 0;
     if (d.sorted[index]) {
       const std::uint8_t* __restrict order = d.order + k0;
-      phase3<G>(blk, k0, nb, [order](std::size_t u) { return order[u]; }, changed);
+      const auto by_regime = [order](std::size_t u) { return order[u]; };
+      phase3<G>(blk, k0, nb, by_regime, changed);
     } else {  // no pair at a cap: array order
-      phase3<G>(blk, k0, nb, [](std::size_t u) { return static_cast<std::uint8_t>(u); }, changed);
+      const auto in_array_order = [](std::size_t u) { return static_cast<std::uint8_t>(u); };
+      phase3<G>(blk, k0, nb, in_array_order, changed);
     }
     d.stale[index] = changed != 0;
   }

@@ -30,10 +30,10 @@ constexpr double k_spacing = 8e-3;  // m, between pair centres: far beyond 2 R +
 constexpr int k_nx = 6, k_ny = 5, k_nz = 2;
 
 struct PairSpec {
-  Vec3 centre, dir;        // m, unit axis from sphere 1 to sphere 0
-  double gap;              // m, surface gap (< 0: overlap)
+  Vec3 centre, dir;  // m, unit axis from sphere 1 to sphere 0
+  double gap;        // m, surface gap (< 0: overlap)
   std::uint32_t mat0, mat1;
-  Vec3 v0, v1, w0, w1;     // m/s, rad/s
+  Vec3 v0, v1, w0, w1;  // m/s, rad/s
 };
 
 std::vector<PairSpec> pair_specs(std::uint32_t materials) {
