@@ -438,6 +438,23 @@ struct ContactKernel {
         return lanes_of([&](int l) { return mt[l]->*f; });
       }
     };
+    // A per-pair array of 3-vectors as x, y, z lanes, and back.
+    const auto of_pair3 = [&](const Vec3* a, V& x, V& y, V& z) {
+      if constexpr (Contig) {
+        load_xyz(a + k[0], x, y, z);
+      } else {
+        x = lanes_of([&](int l) { return a[k[l]][0]; });
+        y = lanes_of([&](int l) { return a[k[l]][1]; });
+        z = lanes_of([&](int l) { return a[k[l]][2]; });
+      }
+    };
+    const auto to_pair3 = [&](Vec3* a, V x, V y, V z) {
+      if constexpr (Contig) {
+        store_xyz(a + k[0], x, y, z);
+      } else {
+        for (int l = 0; l < 4; ++l) a[k[l]] = Vec3(x[l], y[l], z[l]);
+      }
+    };
     const V rx = of_block(blk.rx), ry = of_block(blk.ry), rz = of_block(blk.rz);
     const V inv = of_block(blk.inv_dist);
     const V ov = of_block(blk.overlap);
@@ -471,18 +488,10 @@ struct ContactKernel {
     const V gamma_t = gamma_n * damping_t;
     // Mindlin with history
     V hx, hy, hz;
-    if constexpr (Contig) {
-      load_xyz(d.hist_t + k[0], hx, hy, hz);
-    } else {
-      hx = lanes_of([&](int l) { return d.hist_t[k[l]][0]; });
-      hy = lanes_of([&](int l) { return d.hist_t[k[l]][1]; });
-      hz = lanes_of([&](int l) { return d.hist_t[k[l]][2]; });
-    }
-    if constexpr (Update) {
-      hx += vtx * d.dt;
-      hy += vty * d.dt;
-      hz += vtz * d.dt;
-    }
+    of_pair3(d.hist_t, hx, hy, hz);
+    hx += vtx * d.dt;  // the lanes run only in the stepping pass (k_lanes): the history advances
+    hy += vty * d.dt;
+    hz += vtz * d.dt;
     const V hn = sum3(hx * nx, hy * ny, hz * nz);
     hx -= hn * nx;
     hy -= hn * ny;
@@ -524,19 +533,11 @@ struct ContactKernel {
       wz -= wn * nz;
       const V k_r = k_t * r_star * r_star;
       const V cap = mu_r * r_star * vabs(f_n);
-      if constexpr (Contig) {
-        load_xyz(d.hist_r + k[0], gx, gy, gz);
-      } else {
-        gx = lanes_of([&](int l) { return d.hist_r[k[l]][0]; });
-        gy = lanes_of([&](int l) { return d.hist_r[k[l]][1]; });
-        gz = lanes_of([&](int l) { return d.hist_r[k[l]][2]; });
-      }
-      if constexpr (Update) {
-        const V kdt = k_r * d.dt;
-        gx += kdt * wx;
-        gy += kdt * wy;
-        gz += kdt * wz;
-      }
+      of_pair3(d.hist_r, gx, gy, gz);
+      const V kdt = k_r * d.dt;
+      gx += kdt * wx;
+      gy += kdt * wy;
+      gz += kdt * wz;
       const V g2 = sum3(gx * gx, gy * gy, gz * gz);
       r_cap = g2 > cap * cap;
       if (any(r_cap)) [[unlikely]] {
@@ -553,22 +554,13 @@ struct ContactKernel {
       tjz += gz;
     }
     const V fx = f_n * nx + ftx, fy = f_n * ny + fty, fz = f_n * nz + ftz;
-    if constexpr (Contig) {
-      store_xyz(d.force + k[0], fx, fy, fz);
-      store_xyz(d.torque_i + k[0], tix, tiy, tiz);
-      store_xyz(d.torque_j + k[0], tjx, tjy, tjz);
-      store_xyz(d.hist_t + k[0], hx, hy, hz);
-      if constexpr (Roll == RollingModel::epsd2) store_xyz(d.hist_r + k[0], gx, gy, gz);
-    }
+    to_pair3(d.force, fx, fy, fz);
+    to_pair3(d.torque_i, tix, tiy, tiz);
+    to_pair3(d.torque_j, tjx, tjy, tjz);
+    to_pair3(d.hist_t, hx, hy, hz);
+    if constexpr (Roll == RollingModel::epsd2) to_pair3(d.hist_r, gx, gy, gz);
     for (int l = 0; l < 4; ++l) {
       const std::size_t q = k[l];
-      if constexpr (!Contig) {
-        d.force[q] = Vec3(fx[l], fy[l], fz[l]);
-        d.torque_i[q] = Vec3(tix[l], tiy[l], tiz[l]);
-        d.torque_j[q] = Vec3(tjx[l], tjy[l], tjz[l]);
-        d.hist_t[q] = Vec3(hx[l], hy[l], hz[l]);
-        if constexpr (Roll == RollingModel::epsd2) d.hist_r[q] = Vec3(gx[l], gy[l], gz[l]);
-      }
       const std::uint8_t now = static_cast<std::uint8_t>((t_cap[l] & 1) | (r_cap[l] & 2));
       if (now != d.regime[q]) [[unlikely]] {
         d.regime[q] = now;

@@ -13,6 +13,7 @@
 #include "systems/broadphase.hpp"
 #include "systems/contact_pass.hpp"
 #include "systems/force_gather.hpp"
+#include "support/scenes.hpp"
 
 #include <doctest/doctest.h>
 
@@ -63,10 +64,10 @@ std::vector<PairSpec> pair_specs(std::uint32_t materials) {
   return out;
 }
 
+// The benchmark's material (test::quartz_model: Hertz, Mindlin with history, epsd2), and with
+// `materials` = 2 a second, softer and lighter one.
 Model lanes_model(std::uint32_t materials) {
-  Model m;
-  m.dt = 1e-7;
-  Material a;  // E = 70 GPa, nu = 0.3, mu = 0.5, mu_r = 0.1
+  Model m = test::quartz_model(1e-7, Model{}.contact.skin);
   Material b;
   b.young = 20e9;
   b.poisson = 0.2;
@@ -74,10 +75,9 @@ Model lanes_model(std::uint32_t materials) {
   b.restitution = 0.8;
   b.friction = 0.3;
   b.rolling_friction = 0.05;
-  m.materials = {a};
   if (materials == 2) m.materials.push_back(b);
-  m.contact.rolling = RollingModel::epsd2;
-  m.contact.tangential = TangentialModel::history;
+  REQUIRE(m.contact.rolling == RollingModel::epsd2);
+  REQUIRE(m.contact.tangential == TangentialModel::history);
   m.finalize();
   return m;
 }
