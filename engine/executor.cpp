@@ -23,7 +23,11 @@
 
 namespace sandcell {
 
-Executor::Executor(ExecutorConfig config) : backend_(config.backend), partition_(config.partition) {
+Executor::Executor(ExecutorConfig config)
+    : backend_(config.backend),
+      partition_(config.partition),
+      active_(config.partition == Partition::adaptive ? Partition::owner : config.partition),
+      adaptive_(config.adaptive) {
   // Every world has an executor: this reference links engine/cpu_guard.cpp into every program, and
   // with it the startup check that stops a build for a newer CPU with a message (build_arch.hpp).
   static_cast<void>(build_arch());
@@ -35,6 +39,48 @@ Executor::Executor(ExecutorConfig config) : backend_(config.backend), partition_
   }
   threads_ = config.threads > 0 ? config.threads : available_cpus();
   impl_ = std::make_unique<Impl>(threads_);
+  tuning_ = partition_ == Partition::adaptive && threads_ > 1;
+}
+
+void Executor::record_step(double seconds) {
+  if (!tuning_) return;
+  const auto other = [](Partition p) { return p == Partition::owner ? Partition::dynamic : Partition::owner; };
+  (active_ == Partition::owner ? steps_.owner : steps_.dynamic) += 1;
+  const Partition before = active_;
+  if (!in_trial_) {
+    hold_left_ -= seconds;
+    if (hold_left_ <= 0) {  // a new trial, starting with the partition in use (no switch)
+      in_trial_ = true;
+      batch_ = 0;
+      first_ = active_;
+      batch_steps_ = 0;
+      batch_time_ = trial_time_ = 0;
+      for (auto& t : times_) t.clear();
+    }
+    return;
+  }
+  trial_time_ += seconds;
+  if (batch_steps_++ > 0) {  // the batch's first step is not counted
+    times_[batch_ == 0 || batch_ == 3 ? 0 : 1].push_back(seconds);
+    batch_time_ += seconds;
+  }
+  if (batch_steps_ < std::max<std::uint32_t>(adaptive_.batch_steps, 2) || batch_time_ < adaptive_.batch_seconds) return;
+  batch_steps_ = 0;
+  batch_time_ = 0;
+  if (++batch_ < 4) {
+    active_ = batch_ == 3 ? first_ : other(first_);
+  } else {
+    // The faster by median step time; the one in use before the trial on a tie.
+    const auto median = [](std::vector<double>& t) {
+      std::nth_element(t.begin(), t.begin() + static_cast<std::ptrdiff_t>(t.size() / 2), t.end());
+      return t[t.size() / 2];
+    };
+    active_ = median(times_[1]) < median(times_[0]) ? other(first_) : first_;
+    in_trial_ = false;
+    hold_left_ = adaptive_.hold * trial_time_;
+    steps_.trials += 1;
+  }
+  if (active_ != before) steps_.switches += 1;
 }
 
 Executor::~Executor() = default;
@@ -67,12 +113,12 @@ void Executor::parallel_for(std::size_t n, std::size_t grain, FunctionRef<void(s
   const auto run = [&](const tbb::blocked_range<std::size_t>& r) {
     for (std::size_t c = r.begin(); c < r.end(); ++c) body(c * grain, std::min(n, (c + 1) * grain));
   };
-  if (partition_ == Partition::owner) {
+  if (active_ == Partition::owner) {
     parallel_for_shares(shares(n, grain), grain, body);
     return;
   }
   impl_->arena.execute([&] {
-    if (partition_ == Partition::fixed)
+    if (active_ == Partition::fixed)
       tbb::parallel_for(tbb::blocked_range<std::size_t>(0, chunks, 1), run, tbb::static_partitioner());
     else
       tbb::parallel_for(tbb::blocked_range<std::size_t>(0, chunks, 1), run, tbb::simple_partitioner());
@@ -83,7 +129,7 @@ Executor::Shares Executor::shares(std::size_t n, std::size_t grain) const {
   const std::size_t align = std::clamp<std::size_t>(grain, 1, k_share_align);
   const std::size_t units = (n + align - 1) / align;
   Shares out;
-  out.count = partition_ == Partition::owner
+  out.count = active_ == Partition::owner
                   ? std::max<std::size_t>(1, std::min({static_cast<std::size_t>(threads_), units, k_max_shares}))
                   : 1;
   for (std::size_t k = 0; k < out.count; ++k) out.bounds[k] = std::min(n, units * k / out.count * align);
@@ -170,7 +216,7 @@ void Executor::parallel_for_shares(const Shares& cut, std::size_t grain,
   grain = std::max<std::size_t>(grain, 1);
   SANDCELL_ASSERT(cut.count >= 1 && cut.count <= k_max_shares, "parallel_for_shares: bad share count");
   const auto chunks_of = [&](std::size_t k) { return (cut.bounds[k + 1] - cut.bounds[k] + grain - 1) / grain; };
-  if (partition_ == Partition::owner && backend_ != Backend::serial && cut.count > 1) {
+  if (active_ == Partition::owner && backend_ != Backend::serial && cut.count > 1) {
     std::array<std::size_t, k_max_shares> chunks;
     for (std::size_t k = 0; k < cut.count; ++k) chunks[k] = chunks_of(k);
     run_owned(static_cast<int>(cut.count), chunks.data(), [&](int k, std::size_t c) {
@@ -197,7 +243,7 @@ void Executor::parallel_for_shares(const Shares& cut, std::size_t grain,
     const auto run = [&](const tbb::blocked_range<std::size_t>& r) {
       for (std::size_t c = r.begin(); c < r.end(); ++c) run_chunk(c);
     };
-    if (partition_ == Partition::fixed)
+    if (active_ == Partition::fixed)
       tbb::parallel_for(tbb::blocked_range<std::size_t>(0, chunks, 1), run, tbb::static_partitioner());
     else
       tbb::parallel_for(tbb::blocked_range<std::size_t>(0, chunks, 1), run, tbb::simple_partitioner());

@@ -9,8 +9,11 @@
 
 #include <algorithm>
 #include <array>
+#include <chrono>
 #include <cstddef>
+#include <cstdint>
 #include <memory>
+#include <vector>
 
 namespace sandcell {
 
@@ -18,22 +21,46 @@ enum class Backend { serial, tbb };
 
 /// How parallel_for hands its chunks to the threads (every result is the same either way).
 enum class Partition {
-  owner,    // default: the range cut into one contiguous share per thread (Executor::shares), share k
-            // run from its front by the arena's thread k whenever it is there to take it (the others
-            // take what is left), and a thread done with its share takes the last chunks of the
-            // share with the most left: every pass, a thread keeps the same particles and the pairs
-            // of those particles, what crosses between shares goes through the contact pass's halo
-            // (systems/halo.hpp), so a core reads another's data only as packed copies, and a late
-            // or slow thread's tail is finished by the others
-  dynamic,  // work stealing, one chunk at a time: balances uneven chunks and a core slowed by others,
-            // but a thread's particles and pairs change from pass to pass
-  fixed,    // TBB's static_partitioner over the chunks (no halo)
+  owner,     // default: the range cut into one contiguous share per thread (Executor::shares), share k
+             // run from its front by the arena's thread k whenever it is there to take it (the others
+             // take what is left), and a thread done with its share takes the last chunks of the
+             // share with the most left: every pass, a thread keeps the same particles and the pairs
+             // of those particles, what crosses between shares goes through the contact pass's halo
+             // (systems/halo.hpp), so a core reads another's data only as packed copies, and a late
+             // or slow thread's tail is finished by the others
+  dynamic,   // work stealing, one chunk at a time: balances uneven chunks and a core slowed by others,
+             // but a thread's particles and pairs change from pass to pass
+  fixed,     // TBB's static_partitioner over the chunks (no halo)
+  adaptive,  // owner or dynamic, whichever ran the world's steps faster in the last trial: the two
+             // are timed against each other in short batches (owner, dynamic, dynamic, owner, so that
+             // a steady drift of the host's speed favours neither), the faster then runs for a while,
+             // and the trial is repeated; on one thread, owner. Every result is the same whichever
+             // runs, so the choice costs no determinism
+};
+
+/// The trials of Partition::adaptive. Each of the four batches of a trial runs at least
+/// `batch_steps` steps and `batch_seconds` of step time; its first step (after a switch: the
+/// halo's rebuild, cold caches) is not counted. The faster partition, by the median step time over
+/// its two batches (a median, so that a list rebuild or a vCPU taken away for one step does not
+/// decide), then runs for `hold` times the trial's duration before the next trial. Half a trial
+/// runs the slower one, so the trials cost less than 1 / (2 hold) of the run (1.7 % at 30), and
+/// far less where the two are close.
+struct AdaptiveSettings {
+  double batch_seconds = 0.02;
+  std::uint32_t batch_steps = 16;
+  double hold = 30.0;
 };
 
 struct ExecutorConfig {
   Backend backend = Backend::tbb;
   int threads = 0;  // 0: available_cpus(); ignored by the serial backend (always 1)
   Partition partition = Partition::owner;
+  AdaptiveSettings adaptive{};
+};
+
+/// Steps run under each partition, and the switches between them (Partition::adaptive).
+struct PartitionSteps {
+  std::uint64_t owner = 0, dynamic = 0, switches = 0, trials = 0;
 };
 
 /// The CPUs this process may use: SLURM_CPUS_PER_TASK inside a Slurm job step when it is a positive
@@ -49,8 +76,26 @@ class Executor {
   Executor& operator=(const Executor&) = delete;
 
   Backend backend() const { return backend_; }
+  /// The partition asked for; under Partition::adaptive, active_partition() is the one in use.
   Partition partition() const { return partition_; }
+  Partition active_partition() const { return active_; }
   int threads() const { return threads_; }
+
+  /// Around each step of a world (World::step_until): under Partition::adaptive the executor times
+  /// the steps and switches between owner and dynamic between them (never inside a step); under the
+  /// others, nothing.
+  void begin_step() {
+    if (tuning_) step_start_ = std::chrono::steady_clock::now();
+  }
+  void end_step() {
+    if (tuning_) record_step(std::chrono::duration<double>(std::chrono::steady_clock::now() - step_start_).count());
+  }
+  /// What end_step does with a step's duration: the trial's bookkeeping and, at a batch's end, the
+  /// switch (public for the tests, which feed chosen durations). Nothing unless adaptive.
+  void record_step(double seconds);
+  /// Steps run under each partition, the switches and the trials done: zeros but under
+  /// Partition::adaptive on more than one thread.
+  const PartitionSteps& partition_steps() const { return steps_; }
 
   /// Calls body(begin, end) for consecutive chunks of `grain` indices covering [0, n).
   void parallel_for(std::size_t n, std::size_t grain, FunctionRef<void(std::size_t, std::size_t)> body);
@@ -116,8 +161,20 @@ class Executor {
  private:
   Backend backend_;
   Partition partition_ = Partition::owner;
+  Partition active_ = Partition::owner;  // what parallel_for runs: partition_, or adaptive's choice
   int threads_;
   std::unique_ptr<Impl> impl_;
+  // Partition::adaptive: the state of the trial (record_step).
+  bool tuning_ = false;
+  AdaptiveSettings adaptive_;
+  PartitionSteps steps_;
+  std::chrono::steady_clock::time_point step_start_{};
+  bool in_trial_ = true;
+  int batch_ = 0;  // trial batch 0..3: first, other, other, first partition
+  Partition first_ = Partition::owner;
+  std::uint32_t batch_steps_ = 0;  // steps of this batch so far (its first not timed)
+  double batch_time_ = 0, trial_time_ = 0, hold_left_ = 0;
+  std::array<std::vector<double>, 2> times_;  // the trial's timed steps, [first, other]
   // Runs chunk(k, c) for every chunk c < chunks[k] of every share k < t under the owner partition:
   // share k from its front on the arena's thread k when it comes to take it, the last chunks left
   // by whichever thread has run out of its own; each chunk exactly once.

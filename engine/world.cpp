@@ -185,7 +185,9 @@ std::uint64_t World::step_until(std::uint64_t n, FunctionRef<bool(Cell&, const C
   try {
     scratch_.batching = batching_;
     while (done < n) {
+      exec_.begin_step();
       graph_.run(model_, state_, scratch_);
+      exec_.end_step();
       ++state_.clock.step;
       state_.clock.time += model_.dt;
       ++done;

@@ -662,6 +662,7 @@ Halo& prepare_halo(const State& state, Scratch& scratch, const Executor& exec) {
     halo.active = false;
     halo.n = n;
     halo.m = m;
+    halo.particles = particles;  // so that a later pass in shares (Partition::adaptive) rebuilds it
     return halo;
   }
   const PairConstants& constants = scratch.read<PairConstants>();

@@ -7,6 +7,8 @@
     owner      dem-bench, T threads, owner partition with its halo (the default)
     dynamic    dem-bench, T threads, work-stealing partition (--partition dynamic)
     fixed      dem-bench, T threads, TBB's static partition (--partition fixed)
+    adaptive   dem-bench, T threads, owner or dynamic as timed during the run (--partition
+               adaptive); the CSV's adaptive_owner column is the share of its steps run as owner
     liggghts   LIGGGHTS on T MPI ranks (when installed and --liggghts), same scene
 
 for each thread count T of --threads, each run timed by itself, with the CPU time other processes
@@ -16,7 +18,7 @@ can be told apart. Writes one CSV row per round (after every round, so a run sto
 throughput and of the per-round ratios.
 
     tools/scaling_rounds.py [--rounds 30] [--threads 2 | --threads 2,4,8,16] [--steps 2000]
-        [--partitions owner,dynamic,fixed] [--liggghts] [--liggghts-one] [--minutes M]
+        [--partitions owner,dynamic,fixed,adaptive] [--liggghts] [--liggghts-one] [--minutes M]
         [--compat] [--csv docs/bench/scaling-rounds.csv] [--bench build/release/apps/dem-bench/dem-bench]
 
 With one T the CSV columns are one, owner, dynamic, fixed, liggghts (as in the committed
@@ -77,7 +79,7 @@ def main():
     ap.add_argument("--rounds", type=int, default=30)
     ap.add_argument("--threads", default="2", help="T, or a comma-separated list of T (each >= 2)")
     ap.add_argument("--steps", type=int, default=2000)
-    ap.add_argument("--partitions", default="owner,dynamic,fixed", help="comma-separated, of owner, dynamic, fixed")
+    ap.add_argument("--partitions", default="owner,dynamic,fixed", help="comma-separated, of owner, dynamic, fixed, adaptive")
     ap.add_argument("--liggghts", action="store_true", help="add LIGGGHTS on T ranks to every round")
     ap.add_argument("--liggghts-one", action="store_true", help="with --liggghts: LIGGGHTS on 1 rank too")
     ap.add_argument("--minutes", type=float, default=0.0, help="start no round after this many minutes (0: no limit)")
@@ -92,9 +94,10 @@ def main():
     partitions = args.partitions.split(",")
     if args.rounds < 1 or min(threads) < 2 or args.steps < 1 or args.minutes < 0:
         sys.exit("--rounds >= 1, --threads >= 2 (each), --steps >= 1, --minutes >= 0")
-    known = ("owner", "dynamic", "fixed")
+    known = ("owner", "dynamic", "fixed", "adaptive")
     if not partitions or any(p not in known for p in partitions) or len(set(partitions)) != len(partitions):
-        sys.exit(f"--partitions {args.partitions}: a comma-separated list of distinct owner, dynamic, fixed")
+        sys.exit(f"--partitions {args.partitions}: a comma-separated list of distinct owner, dynamic, fixed, "
+                 "adaptive")
     if not os.access(args.bench, os.X_OK):
         sys.exit(f"--bench {args.bench}: not an executable (build first)")
     compat = ["--compat"] if (args.compat or args.liggghts) else []
@@ -128,6 +131,9 @@ def main():
                 row[key] = report["particle_steps_per_s"]
                 particles = report["particles"]  # the same scene LIGGGHTS runs
                 row[key + "_foreign"] = foreign
+                steps = report.get("partition_steps", {})
+                if key.startswith("adaptive") and steps.get("owner", 0) + steps.get("dynamic", 0) > 0:
+                    row[key + "_owner"] = steps["owner"] / (steps["owner"] + steps["dynamic"])
             for T in ranks:
                 out, _, foreign = timed(["mpirun", "--allow-run-as-root", "-np", str(T), "liggghts", "-in",
                                          os.path.join(ROOT, "tools", "liggghts", "bench.in"), "-var", "data",
@@ -166,6 +172,9 @@ def main():
             if args.liggghts:
                 a = q(col(name(k, T)) / col(name("liggghts", T)))
                 print(f"  {name(k, T)}/{name('liggghts', T)} per round {a[0]:.2f} {a[1]:.2f} {a[2]:.2f}")
+            if k == "adaptive" and all(name(k, T) + "_owner" in row for row in rows):
+                a = q(col(name(k, T) + "_owner"))
+                print(f"  {name(k, T)} steps as owner {a[0]:.2f} {a[1]:.2f} {a[2]:.2f}")
         if args.liggghts and args.liggghts_one:
             a = q(col(name("liggghts", T)) / col("liggghts_1"))
             print(f"  {name('liggghts', T)}/liggghts_1 per round {a[0]:.2f} {a[1]:.2f} {a[2]:.2f}")

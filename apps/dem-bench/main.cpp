@@ -359,8 +359,10 @@ static int bench_main(int argc, char** argv) {
         partition = Partition::fixed;
       else if (v == "owner")
         partition = Partition::owner;
+      else if (v == "adaptive")
+        partition = Partition::adaptive;
       else
-        usage_error("--partition = '" + std::string(v) + "': allowed dynamic, fixed, owner");
+        usage_error("--partition = '" + std::string(v) + "': allowed adaptive, dynamic, fixed, owner");
     } else if (arg == "--rounds")
       rounds = static_cast<int>(parse_number("--rounds", value(), 1, 1000));
     else if (arg == "--rolling") {
@@ -392,7 +394,7 @@ static int bench_main(int argc, char** argv) {
     } else if (arg == "--help" || arg == "-h") {
       std::printf(
           "usage: dem-bench [--scene FILE] [--steps N] [--threads T] [--deform RATE] [--rolling none|epsd2|epsd|cdt]\n"
-          "                 [--tangential history|incremental] [--normal hertz|hooke [--vchar V]] [--compat] [--sort STEPS] [--serial] [--partition owner|dynamic|fixed] [--json]\n"
+          "                 [--tangential history|incremental] [--normal hertz|hooke [--vchar V]] [--compat] [--sort STEPS] [--serial] [--partition owner|dynamic|fixed|adaptive] [--json]\n"
           "       dem-bench --costs [--scene FILE] [--steps N] [--threads T] [--rounds R]\n"
           "       dem-bench --probe [--threads T]   (the machine alone: register-only scaling, ping-pong)\n"
           "       dem-bench --scaling [--scene FILE] [--steps N] [--threads T] [--rounds R] [--deform RATE] [--partition P] [--probe] [--json]\n");
@@ -446,6 +448,9 @@ static int bench_main(int argc, char** argv) {
   const std::uint64_t builds = list_builds(world.scratch()) - builds0;
   const auto& graph = world.graph();
   const unsigned long long digest = state_digest(world.state());
+  const PartitionSteps& ps = world.executor().partition_steps();
+  const char* const partition_names[] = {"owner", "dynamic", "fixed", "adaptive"};
+  const char* partition_name = serial ? "serial" : partition_names[static_cast<int>(partition)];
 
   if (json) {
     std::printf(
@@ -454,11 +459,15 @@ static int bench_main(int argc, char** argv) {
         " \"contacts_per_particle_start\": %.6f, \"contacts_per_particle\": %.6f, \"rebuilds\": %llu,\n"
         " \"peak_mib\": %.1f, \"mean_stress_start_pa\": %.6e, \"mean_stress_pa\": %.6e,\n"
         " \"stress_pa\": [%.6e, %.6e, %.6e, %.6e, %.6e, %.6e], \"lz\": %.9f, \"digest\": \"%016llx\",\n"
+        " \"partition\": \"%s\", \"partition_steps\": {\"owner\": %llu, \"dynamic\": %llu, \"switches\": %llu, "
+        "\"trials\": %llu},\n"
         " \"system_s\": {",
         scene.c_str(), std::string(build_arch()).c_str(), n, steps, world.executor().threads(),
         serial ? "serial" : "tbb", deform, model.contact.liggghts_compat ? "true" : "false", wall, rate, 2.0 * c0 / n,
         2.0 * c1 / n, static_cast<unsigned long long>(builds), peak_mib, s0.trace() / 3, s1.trace() / 3, s1(0, 0),
-        s1(1, 1), s1(2, 2), s1(0, 1), s1(0, 2), s1(1, 2), world.state().cell.length[2], digest);
+        s1(1, 1), s1(2, 2), s1(0, 1), s1(0, 2), s1(1, 2), world.state().cell.length[2], digest, partition_name,
+        static_cast<unsigned long long>(ps.owner), static_cast<unsigned long long>(ps.dynamic),
+        static_cast<unsigned long long>(ps.switches), static_cast<unsigned long long>(ps.trials));
     for (std::size_t k = 0; k < graph.size(); ++k)
       std::printf("%s\"%s\": %.6f", k ? ", " : "", graph.system(k).name.c_str(), graph.timers()[k]);
     std::printf("}}\n");
@@ -468,6 +477,12 @@ static int bench_main(int argc, char** argv) {
   std::printf("particles        %zu\n", n);
   std::printf("steps            %ld\n", steps);
   std::printf("threads          %d (%s)\n", world.executor().threads(), serial ? "serial backend" : "tbb");
+  std::printf("partition        %s", partition_name);
+  if (ps.trials > 0)
+    std::printf(" (%llu steps owner, %llu dynamic; %llu trials, %llu switches)",
+                static_cast<unsigned long long>(ps.owner), static_cast<unsigned long long>(ps.dynamic),
+                static_cast<unsigned long long>(ps.trials), static_cast<unsigned long long>(ps.switches));
+  std::printf("\n");
   std::printf("build arch       %s (SANDCELL_ARCH; results are bitwise the same for every value)\n",
               std::string(build_arch()).c_str());
   std::printf("wall (step loop) %.3f s\n", wall);

@@ -20,6 +20,7 @@
 using namespace sandcell;
 
 TEST_CASE("parallel_for visits every index exactly once, in chunks of the grain within each share") {
+  // (Partition::adaptive runs as owner until its first batch ends: covered below.)
   for (Partition partition : {Partition::dynamic, Partition::fixed, Partition::owner})
     for (int threads : {1, 2, 3, 8}) {
       CAPTURE(static_cast<int>(partition));
@@ -152,6 +153,90 @@ TEST_CASE("deterministic_reduce gives the same bits for the serial backend and 1
         CHECK(std::memcmp(&s, &reference, sizeof(double)) == 0);
       }
     }
+}
+
+// Feeds `steps` step durations to exec (owner's or dynamic's, by the partition in use, the n-th
+// step of dynamic `spike` seconds instead when n is spike_at) and returns the partitions in use, one
+// letter per step: o owner, d dynamic.
+std::string feed(Executor& exec, int steps, double owner_s, double dynamic_s, int spike_at = -1, double spike = 0) {
+  std::string used;
+  int dynamic_steps = 0;
+  for (int k = 0; k < steps; ++k) {
+    const bool owner = exec.active_partition() == Partition::owner;
+    used += owner ? 'o' : 'd';
+    exec.record_step(owner ? owner_s : (dynamic_steps++ == spike_at ? spike : dynamic_s));
+  }
+  return used;
+}
+
+TEST_CASE("adaptive partition: a trial runs owner, dynamic, dynamic, owner, then holds the faster by median") {
+  // Batches of 3 steps (the first of each not timed), no time floor; the hold is 2x the trial.
+  // Durations are powers of two (ms and 2 ms, about), so that the hold's countdown is exact.
+  const AdaptiveSettings fast{0.0, 3, 2.0};
+  const double ms = 0x1p-10, two_ms = 0x1p-9;
+  SUBCASE("dynamic faster: held for 2x the trial, and the next trial starts from it") {
+    Executor exec({Backend::tbb, 2, Partition::adaptive, fast});
+    CHECK(exec.partition() == Partition::adaptive);
+    // The trial: 6 owner steps of 2 ms and 6 dynamic of 1 ms, 18 ms; the hold 36 ms = 36 dynamic
+    // steps; the next trial: dynamic, owner, owner, dynamic, 3 steps each; then dynamic again.
+    const std::string used = feed(exec, 12 + 36 + 12 + 2, two_ms, ms);
+    CHECK(used ==
+          "ooodddddd"
+          "ooo" +
+              std::string(36, 'd') +
+              "ddd"
+              "oooooo"
+              "ddd"
+              "dd");
+    const PartitionSteps& st = exec.partition_steps();
+    CHECK(st.trials == 2);
+    CHECK(st.owner == 12);
+    CHECK(st.dynamic == 62 - 12);
+    CHECK(st.switches == 5);  // first trial: to dynamic, back to owner, to dynamic (held); second
+                              // trial: to owner and back to dynamic (held: no switch)
+  }
+  SUBCASE("one slow step does not decide: the median, not the mean") {
+    Executor exec({Backend::tbb, 2, Partition::adaptive, fast});
+    // Dynamic's second step (timed) takes 1 s: its mean over the trial would lose to owner's
+    // 2 ms, its median (1 ms) wins.
+    const std::string used = feed(exec, 14, two_ms, ms, 1, 1.0);
+    CHECK(used ==
+          "ooodddddd"
+          "ooo"
+          "dd");
+  }
+  SUBCASE("owner faster, or a tie: owner kept, no switch after the trial") {
+    for (const double dynamic_s : {2 * two_ms, two_ms}) {
+      Executor exec({Backend::tbb, 2, Partition::adaptive, fast});
+      const std::string used = feed(exec, 14, two_ms, dynamic_s);
+      CHECK(used ==
+            "ooodddddd"
+            "ooo"
+            "oo");
+      CHECK(exec.partition_steps().switches == 2);
+    }
+  }
+  SUBCASE("parallel_for follows the partition in use: one share per thread under owner, one under dynamic") {
+    Executor exec({Backend::tbb, 2, Partition::adaptive, fast});
+    CHECK(exec.shares(4096, 64).count == 2);
+    feed(exec, 3, two_ms, ms);
+    REQUIRE(exec.active_partition() == Partition::dynamic);
+    CHECK(exec.shares(4096, 64).count == 1);
+    std::vector<int> hits(4096, 0);
+    exec.parallel_for(4096, 64, [&](std::size_t b, std::size_t e) {
+      for (std::size_t k = b; k < e; ++k) ++hits[k];
+    });
+    CHECK(std::count(hits.begin(), hits.end(), 1) == 4096);
+  }
+  SUBCASE("one thread or the serial backend: no trial, owner") {
+    for (const ExecutorConfig cfg : {ExecutorConfig{Backend::tbb, 1, Partition::adaptive, fast},
+                                     ExecutorConfig{Backend::serial, 4, Partition::adaptive, fast}}) {
+      Executor exec(cfg);
+      CHECK(feed(exec, 20, two_ms, ms) == std::string(20, 'o'));
+      CHECK(exec.partition_steps().trials == 0);
+      CHECK(exec.partition_steps().owner == 0);
+    }
+  }
 }
 
 TEST_CASE("executor reports its thread count") {

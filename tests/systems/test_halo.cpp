@@ -114,3 +114,38 @@ TEST_CASE("only the owner partition with more than one thread builds a halo") {
     CHECK_FALSE(w.scratch().own<Halo>().active);
   }
 }
+
+TEST_CASE("adaptive partition: switching between owner and dynamic between steps keeps every bit") {
+  // Batches of 2 steps and a hold as long as the trial: the world switches every few steps, so the
+  // halo is dropped and rebuilt many times inside one list (and across rebuilds of it).
+  Model model = test::quartz_model(2e-8, 0.1e-3);
+  model.contact.sort_interval = 10;
+  const State start = dense_scene(model);
+  World serial(model, start, systems_for(model), ExecutorConfig{Backend::serial, 1});
+  serial.step(40);
+  for (int threads : {2, 3}) {
+    CAPTURE(threads);
+    World w(model, start, systems_for(model),
+            ExecutorConfig{Backend::tbb, threads, Partition::adaptive, AdaptiveSettings{0.0, 2, 1.0}});
+    // After each step the halo is that step's partition's: built under owner (also on a return from
+    // dynamic within the same list), dropped under dynamic.
+    int mismatched = 0, returns = 0;
+    Partition last = Partition::owner;
+    for (int k = 0; k < 40; ++k) {
+      const Partition used = w.executor().active_partition();
+      w.step(1);
+      if (w.scratch().own<Halo>().active != (used == Partition::owner)) ++mismatched;
+      if (used == Partition::owner && last == Partition::dynamic) ++returns;
+      last = used;
+    }
+    CHECK(mismatched == 0);
+    CHECK(returns >= 2);
+    CHECK(first_difference(w.state().particles, serial.state().particles) == "");
+    CHECK(first_difference(w.state().contacts, serial.state().contacts) == "");
+    const PartitionSteps& st = w.executor().partition_steps();
+    CHECK(st.owner + st.dynamic == 40);
+    CHECK(st.owner > 0);
+    CHECK(st.dynamic > 0);
+    CHECK(st.switches >= 4);
+  }
+}
