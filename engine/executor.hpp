@@ -21,7 +21,7 @@ enum class Backend { serial, tbb };
 
 /// How parallel_for hands its chunks to the threads (every result is the same either way).
 enum class Partition {
-  owner,     // default: the range cut into one contiguous share per thread (Executor::shares), share k
+  owner,     // the range cut into one contiguous share per thread (Executor::shares), share k
              // run from its front by the arena's thread k whenever it is there to take it (the others
              // take what is left), and a thread done with its share takes the last chunks of the
              // share with the most left: every pass, a thread keeps the same particles and the pairs
@@ -31,11 +31,11 @@ enum class Partition {
   dynamic,   // work stealing, one chunk at a time: balances uneven chunks and a core slowed by others,
              // but a thread's particles and pairs change from pass to pass
   fixed,     // TBB's static_partitioner over the chunks (no halo)
-  adaptive,  // owner or dynamic, whichever ran the world's steps faster in the last trial: the two
-             // are timed against each other in short batches (owner, dynamic, dynamic, owner, so that
-             // a steady drift of the host's speed favours neither), the faster then runs for a while,
-             // and the trial is repeated; on one thread, owner. Every result is the same whichever
-             // runs, so the choice costs no determinism
+  adaptive,  // default: owner or dynamic, whichever ran the world's steps faster in the last
+             // trial: the two are timed against each other in short batches (owner, dynamic,
+             // dynamic, owner, so that a steady drift of the host's speed favours neither), the
+             // faster then runs for a while, and the trial is repeated; on one thread, owner. Every
+             // result is the same whichever runs, so the choice costs no determinism
 };
 
 /// The trials of Partition::adaptive. Each of the four batches of a trial runs at least
@@ -54,7 +54,7 @@ struct AdaptiveSettings {
 struct ExecutorConfig {
   Backend backend = Backend::tbb;
   int threads = 0;  // 0: available_cpus(); ignored by the serial backend (always 1)
-  Partition partition = Partition::owner;
+  Partition partition = Partition::adaptive;
   AdaptiveSettings adaptive{};
 };
 

@@ -4,11 +4,12 @@
     probe      dem-bench --probe: T register-only FP chains against one, and the cache-line
                ping-pong between vCPUs 0 and 1 (what the machine allows, without any DEM code)
     one        dem-bench, 1 thread
-    owner      dem-bench, T threads, owner partition with its halo (the default)
+    owner      dem-bench, T threads, owner partition with its halo (--partition owner)
     dynamic    dem-bench, T threads, work-stealing partition (--partition dynamic)
     fixed      dem-bench, T threads, TBB's static partition (--partition fixed)
-    adaptive   dem-bench, T threads, owner or dynamic as timed during the run (--partition
-               adaptive); the CSV's adaptive_owner column is the share of its steps run as owner
+    adaptive   dem-bench, T threads, owner or dynamic as timed during the run (the default,
+               --partition adaptive); the CSV's adaptive_owner column is the share of its steps
+               run as owner
     liggghts   LIGGGHTS on T MPI ranks (when installed and --liggghts), same scene
 
 for each thread count T of --threads, each run timed by itself, with the CPU time other processes
@@ -18,7 +19,7 @@ can be told apart. Writes one CSV row per round (after every round, so a run sto
 throughput and of the per-round ratios.
 
     tools/scaling_rounds.py [--rounds 30] [--threads 2 | --threads 2,4,8,16] [--steps 2000]
-        [--partitions owner,dynamic,fixed,adaptive] [--liggghts] [--liggghts-one] [--minutes M]
+        [--partitions adaptive,owner,dynamic,fixed] [--liggghts] [--liggghts-one] [--minutes M]
         [--compat] [--csv docs/bench/scaling-rounds.csv] [--bench build/release/apps/dem-bench/dem-bench]
 
 With one T the CSV columns are one, owner, dynamic, fixed, liggghts (as in the committed
@@ -79,7 +80,8 @@ def main():
     ap.add_argument("--rounds", type=int, default=30)
     ap.add_argument("--threads", default="2", help="T, or a comma-separated list of T (each >= 2)")
     ap.add_argument("--steps", type=int, default=2000)
-    ap.add_argument("--partitions", default="owner,dynamic,fixed", help="comma-separated, of owner, dynamic, fixed, adaptive")
+    ap.add_argument("--partitions", default="adaptive,owner,dynamic",
+                    help="comma-separated, of adaptive, owner, dynamic, fixed")
     ap.add_argument("--liggghts", action="store_true", help="add LIGGGHTS on T ranks to every round")
     ap.add_argument("--liggghts-one", action="store_true", help="with --liggghts: LIGGGHTS on 1 rank too")
     ap.add_argument("--minutes", type=float, default=0.0, help="start no round after this many minutes (0: no limit)")

@@ -319,7 +319,7 @@ static int bench_main(int argc, char** argv) {
   int threads = 0;
   double deform = 0.0;
   bool json = false, serial = false, costs = false, scaling = false, probe = false;
-  Partition partition = Partition::owner;
+  Partition partition = Partition::adaptive;
   int rounds = 3;
   long sort_interval = -1;
   Model model;
@@ -394,7 +394,7 @@ static int bench_main(int argc, char** argv) {
     } else if (arg == "--help" || arg == "-h") {
       std::printf(
           "usage: dem-bench [--scene FILE] [--steps N] [--threads T] [--deform RATE] [--rolling none|epsd2|epsd|cdt]\n"
-          "                 [--tangential history|incremental] [--normal hertz|hooke [--vchar V]] [--compat] [--sort STEPS] [--serial] [--partition owner|dynamic|fixed|adaptive] [--json]\n"
+          "                 [--tangential history|incremental] [--normal hertz|hooke [--vchar V]] [--compat] [--sort STEPS] [--serial] [--partition adaptive|owner|dynamic|fixed] [--json]\n"
           "       dem-bench --costs [--scene FILE] [--steps N] [--threads T] [--rounds R]\n"
           "       dem-bench --probe [--threads T]   (the machine alone: register-only scaling, ping-pong)\n"
           "       dem-bench --scaling [--scene FILE] [--steps N] [--threads T] [--rounds R] [--deform RATE] [--partition P] [--probe] [--json]\n");
@@ -479,7 +479,7 @@ static int bench_main(int argc, char** argv) {
   std::printf("threads          %d (%s)\n", world.executor().threads(), serial ? "serial backend" : "tbb");
   std::printf("partition        %s", partition_name);
   if (ps.trials > 0)
-    std::printf(" (%llu steps owner, %llu dynamic; %llu trials, %llu switches)",
+    std::printf(" (steps: %llu owner, %llu dynamic; trials %llu, switches %llu)",
                 static_cast<unsigned long long>(ps.owner), static_cast<unsigned long long>(ps.dynamic),
                 static_cast<unsigned long long>(ps.trials), static_cast<unsigned long long>(ps.switches));
   std::printf("\n");
