@@ -12,6 +12,7 @@
 #include <algorithm>
 #include <array>
 #include <atomic>
+#include <cmath>
 #include <cstdint>
 #include <cstdlib>
 #include <string>
@@ -33,6 +34,16 @@ Executor::Executor(ExecutorConfig config)
   static_cast<void>(build_arch());
   SANDCELL_CHECK(config.threads >= 0,
                  "threads must be >= 0 (0 = all hardware threads), got " + std::to_string(config.threads));
+  if (config.partition == Partition::adaptive) {
+    const AdaptiveSettings& a = config.adaptive;
+    SANDCELL_CHECK(std::isfinite(a.batch_seconds) && a.batch_seconds >= 0,
+                   "adaptive.batch_seconds must be finite and >= 0, got " + std::to_string(a.batch_seconds));
+    SANDCELL_CHECK(a.batch_steps >= 2,
+                   "adaptive.batch_steps must be >= 2 (the first step of a batch is not timed), got " +
+                       std::to_string(a.batch_steps));
+    SANDCELL_CHECK(std::isfinite(a.hold) && a.hold > 0,
+                   "adaptive.hold must be finite and > 0, got " + std::to_string(a.hold));
+  }
   if (backend_ == Backend::serial) {
     threads_ = 1;
     return;
@@ -64,7 +75,7 @@ void Executor::record_step(double seconds) {
     times_[batch_ == 0 || batch_ == 3 ? 0 : 1].push_back(seconds);
     batch_time_ += seconds;
   }
-  if (batch_steps_ < std::max<std::uint32_t>(adaptive_.batch_steps, 2) || batch_time_ < adaptive_.batch_seconds) return;
+  if (batch_steps_ < adaptive_.batch_steps || batch_time_ < adaptive_.batch_seconds) return;
   batch_steps_ = 0;
   batch_time_ = 0;
   if (++batch_ < 4) {

@@ -115,15 +115,16 @@ class Executor {
 
   /// The shares in which the owner partition's parallel_for(n, grain) cuts [0, n): one per thread,
   /// equal to within min(grain, k_share_align), each cut into chunks of `grain` from its own start.
-  /// Under the other partitions, one share.
+  /// Under the other partitions, one share (under adaptive: those of the partition in use, so a
+  /// pass that keeps state cut by the shares, like the contact pass's halo, checks them every step).
   /// A pass over another index space (pairs listed by their first particle) can map these bounds
   /// into its own and run them with parallel_for_shares, so that a thread keeps the particles it
   /// integrates and the pairs of those particles on its own core.
   Shares shares(std::size_t n, std::size_t grain) const;
 
   /// Like parallel_for, over the shares of `shares` (ascending bounds), each cut into chunks of
-  /// `grain` counted from its own first index. Under Partition::owner share k runs on thread k; under
-  /// the others every chunk goes to the common pool. The chunk boundaries depend on the shares: a
+  /// `grain` counted from its own first index. Under Partition::owner (or adaptive running owner)
+  /// share k runs on thread k; under the others every chunk goes to the common pool. The chunk boundaries depend on the shares: a
   /// body whose result per index does not depend on where its chunk begins gives the same results
   /// whatever the shares.
   void parallel_for_shares(const Shares& shares, std::size_t grain, FunctionRef<void(std::size_t, std::size_t)> body);

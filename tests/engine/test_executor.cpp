@@ -1,6 +1,8 @@
 // Executor seam: coverage of parallel_for and bitwise determinism of deterministic_reduce.
+#include "engine/assert.hpp"
 #include "engine/executor.hpp"
 #include "support/affinity.hpp"
+#include "support/scenes.hpp"
 
 #include <doctest/doctest.h>
 
@@ -227,6 +229,17 @@ TEST_CASE("adaptive partition: a trial runs owner, dynamic, dynamic, owner, then
       for (std::size_t k = b; k < e; ++k) ++hits[k];
     });
     CHECK(std::count(hits.begin(), hits.end(), 1) == 4096);
+  }
+  SUBCASE("settings out of range are refused, naming the setting and the value") {
+    const AssertHandler previous = set_assert_handler(&test::throwing_assert_handler);
+    for (const AdaptiveSettings bad : {AdaptiveSettings{-1.0, 16, 30.0}, AdaptiveSettings{0.02, 1, 30.0},
+                                       AdaptiveSettings{0.02, 16, 0.0}, AdaptiveSettings{0.02, 16, NAN}}) {
+      CAPTURE(bad.batch_seconds);
+      CHECK_THROWS_WITH_AS(Executor({Backend::tbb, 2, Partition::adaptive, bad}), doctest::Contains("adaptive."),
+                           test::AssertionError);
+    }
+    CHECK_NOTHROW(Executor({Backend::tbb, 2, Partition::owner, AdaptiveSettings{-1.0, 0, 0.0}}));  // unused
+    set_assert_handler(previous);
   }
   SUBCASE("one thread or the serial backend: no trial, owner") {
     for (const ExecutorConfig cfg : {ExecutorConfig{Backend::tbb, 1, Partition::adaptive, fast},
