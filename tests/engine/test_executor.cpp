@@ -157,6 +157,7 @@ TEST_CASE("deterministic_reduce gives the same bits for the serial backend and 1
     }
 }
 
+namespace {
 // Feeds `steps` step durations to exec (owner's or dynamic's, by the partition in use, the n-th
 // step of dynamic `spike` seconds instead when n is spike_at) and returns the partitions in use, one
 // letter per step: o owner, d dynamic.
@@ -170,6 +171,7 @@ std::string feed(Executor& exec, int steps, double owner_s, double dynamic_s, in
   }
   return used;
 }
+}  // namespace
 
 TEST_CASE("adaptive partition: a trial runs owner, dynamic, dynamic, owner, then holds the faster by median") {
   // Batches of 3 steps (the first of each not timed), no time floor; the hold is 2x the trial.
@@ -182,14 +184,7 @@ TEST_CASE("adaptive partition: a trial runs owner, dynamic, dynamic, owner, then
     // The trial: 6 owner steps of 2 ms and 6 dynamic of 1 ms, 18 ms; the hold 36 ms = 36 dynamic
     // steps; the next trial: dynamic, owner, owner, dynamic, 3 steps each; then dynamic again.
     const std::string used = feed(exec, 12 + 36 + 12 + 2, two_ms, ms);
-    CHECK(used ==
-          "ooodddddd"
-          "ooo" +
-              std::string(36, 'd') +
-              "ddd"
-              "oooooo"
-              "ddd"
-              "dd");
+    CHECK(used == "oooddddddooo" + std::string(36, 'd') + "dddooooooddd" + "dd");
     const PartitionSteps& st = exec.partition_steps();
     CHECK(st.trials == 2);
     CHECK(st.owner == 12);
@@ -202,19 +197,13 @@ TEST_CASE("adaptive partition: a trial runs owner, dynamic, dynamic, owner, then
     // Dynamic's second step (timed) takes 1 s: its mean over the trial would lose to owner's
     // 2 ms, its median (1 ms) wins.
     const std::string used = feed(exec, 14, two_ms, ms, 1, 1.0);
-    CHECK(used ==
-          "ooodddddd"
-          "ooo"
-          "dd");
+    CHECK(used == "oooddddddooodd");
   }
   SUBCASE("owner faster, or a tie: owner kept, no switch after the trial") {
     for (const double dynamic_s : {2 * two_ms, two_ms}) {
       Executor exec({Backend::tbb, 2, Partition::adaptive, fast});
       const std::string used = feed(exec, 14, two_ms, dynamic_s);
-      CHECK(used ==
-            "ooodddddd"
-            "ooo"
-            "oo");
+      CHECK(used == "oooddddddooooo");
       CHECK(exec.partition_steps().switches == 2);
     }
   }
