@@ -51,6 +51,11 @@ Executor::Executor(ExecutorConfig config)
   threads_ = config.threads > 0 ? config.threads : available_cpus();
   impl_ = std::make_unique<Impl>(threads_);
   tuning_ = partition_ == Partition::adaptive && threads_ > 1;
+  // The trial's step times, kept between trials (clear() keeps the capacity): no allocation in the
+  // step loop unless a partition's two batches exceed this many steps (20 ms batches of steps
+  // shorter than 0.08 ms).
+  if (tuning_)
+    for (auto& t : times_) t.reserve(512);
 }
 
 void Executor::record_step(double seconds) {
