@@ -81,6 +81,7 @@ std::string num(double v, const char* format = "%.6g") {
 struct Options {
   std::string config_path;
   int threads = 0;
+  std::string partition = "adaptive";  // --thread-partition: how threads share a pass (same results for all)
   std::string out;
   bool resume = false;
   bool overwrite = false;
@@ -138,6 +139,7 @@ struct Plan {
   }
   int job_threads = 1;      // threads of one test (the budget split between `parallel` tests)
   int prepare_threads = 1;  // threads of one preparation (all of them when chained ones run one by one)
+  Partition partition = Partition::adaptive;  // --thread-partition
 };
 
 std::string p0_tag(double p0) { return "p0_" + num(p0 / 1e3, "%g") + "kPa"; }
@@ -520,8 +522,8 @@ void PrepareRun::open(const Runner& runner) {
   if (from_ > 0.0) summary_.from = "sample-" + p0_tag(from_);
   // A chained preparation continues a sample whose forces are in its state, as a test does.
   const bool initial_forces = !resumed_ && from_ == 0.0;
-  world_.emplace(model, std::move(state), systems_for(model), ExecutorConfig{Backend::tbb, plan_.prepare_threads},
-                 initial_forces);
+  world_.emplace(model, std::move(state), systems_for(model),
+                 ExecutorConfig{Backend::tbb, plan_.prepare_threads, plan_.partition}, initial_forces);
   mo_.d50 = median_diameter(world_->state().particles);
   mo_.density = plan_.config.material.density;
   log_.line(name_ + ": isotropic compression to " + num(p0_ / 1e6) + " MPa from the " +
@@ -827,7 +829,8 @@ bool ShearRun::open(const Runner& runner, const fs::path& sample) {
   } else {
     state = start_from_sample(sample);
   }
-  world_.emplace(model, std::move(state), systems_for(model), ExecutorConfig{Backend::tbb, plan_.job_threads}, false);
+  world_.emplace(model, std::move(state), systems_for(model),
+                 ExecutorConfig{Backend::tbb, plan_.job_threads, plan_.partition}, false);
   mo_.d50 = median_diameter(world_->state().particles);
   mo_.density = plan_.config.material.density;
   log_.line(test_.name + ": " + path_name(test_.path) +
@@ -1215,6 +1218,10 @@ Plan make_plan(Config config_in, const Options& options) {
   const int total = options.threads > 0 ? options.threads : available_cpus();
   plan.job_threads = std::max(1, total / std::max(1, config.parallel));
   plan.prepare_threads = config.prepare.chain ? total : plan.job_threads;
+  plan.partition = options.partition == "owner"     ? Partition::owner
+                   : options.partition == "dynamic" ? Partition::dynamic
+                   : options.partition == "fixed"   ? Partition::fixed
+                                                    : Partition::adaptive;  // CLI11 allowed only these four
   return plan;
 }
 
@@ -1542,6 +1549,9 @@ static int slurm_main(int argc, const char* const* argv, std::ostream& out, std:
   app.add_option("--cpus-per-task", c.cpus_per_task, "CPUs (threads) of each task")->check(CLI::Range(1, 4096));
   app.add_option("--time", c.time, "time limit of each task, HH:MM:SS or D-HH:MM:SS (default 24:00:00)");
   app.add_option("--partition", c.partition, "partition (default: the cluster's)");
+  app.add_option("--thread-partition", c.thread_partition,
+                 "passed on to every task: how its threads share each pass (triaxial --help; default adaptive)")
+      ->check(CLI::IsMember({"adaptive", "owner", "dynamic", "fixed"}));
   app.add_option("--max-running", c.max_running, "tasks of an array running at once (0: no limit)")
       ->check(CLI::Range(0, 100000));
   app.add_flag("--submit", submit, "submit the scripts with sbatch after writing them");
@@ -1749,6 +1759,13 @@ static void add_run_options(CLI::App& app, CommandLine& cl) {
          "--threads", options.threads,
          "worker threads in all (default: the CPUs this process may use: SLURM_CPUS_PER_TASK, else its affinity mask)")
       ->check(CLI::Range(1, 1024));
+  // Not a config key: like --threads it says how this host runs the job, never what it computes
+  // (every partition gives bitwise the same results), so a resume may change it.
+  app.add_option("--thread-partition", options.partition,
+                 "how the threads share each pass: adaptive (default: owner or dynamic, whichever runs this "
+                 "host's steps faster, timed during the run), owner (each thread keeps its particles), dynamic "
+                 "(work stealing) or fixed; the results are bitwise the same for all")
+      ->check(CLI::IsMember({"adaptive", "owner", "dynamic", "fixed"}));
   app.add_option("--out", options.out, "output directory (default: results/<config name>)");
   app.add_flag("--resume", options.resume, "continue a killed run from its checkpoints");
   app.add_flag("--overwrite", options.overwrite, "replace the results of an earlier run in the output directory");

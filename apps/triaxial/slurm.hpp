@@ -27,6 +27,7 @@ struct SlurmCampaign {
   int cpus_per_task = 1;
   std::string time = "24:00:00";  // per task, HH:MM:SS (or D-HH:MM:SS)
   std::string partition;          // empty: the cluster's default
+  std::string thread_partition;   // triaxial --thread-partition of every task; empty: its default
   int max_running = 0;            // array throttle (%M); 0: none
 };
 

@@ -223,6 +223,11 @@ TEST_CASE("triaxial: each class of bad input exits 2 naming the key, and clobber
   const Result t = run({"--threads", "0"});
   CHECK(t.code == 2);
   CHECK(t.err.find("--threads") != std::string::npos);
+  const Result part = run({"--thread-partition", "static"});
+  CHECK(part.code == 2);
+  CHECK(part.err.find("--thread-partition") != std::string::npos);
+  CHECK(part.err.find("static") != std::string::npos);
+  CHECK(part.err.find("adaptive") != std::string::npos);  // what is allowed
   // A valid config into a directory holding an earlier run: refused unless --resume or --overwrite.
   write(dir / "good.toml", base);
   const Result e = run({(dir / "good.toml").string(), "--out", dir.string()});
@@ -232,21 +237,22 @@ TEST_CASE("triaxial: each class of bad input exits 2 naming the key, and clobber
   fs::remove_all(dir);
 }
 
-TEST_CASE("triaxial: stop and --resume (other thread counts) is bitwise identical to an uninterrupted run") {
+TEST_CASE("triaxial: stop and --resume (other threads, partitions) is bitwise identical to an uninterrupted run") {
   const fs::path dir = fresh_dir("resume");
   write(dir / "small.toml", k_small);
   const fs::path a = dir / "a", b = dir / "b";
   const Result whole = run({(dir / "small.toml").string(), "--out", a.string(), "--threads", "1"});
   REQUIRE(whole.code == 0);
   // The same run, stopped every 1000 steps of a job (as if killed right after a checkpoint) and
-  // resumed with 2, then 3, then 2 ... threads until done. Both the preparation and the shear
-  // stage are interrupted at least once (each needs more than 1000 steps: checked below).
+  // resumed with 2, then 3, then 2 ... threads until done, under the owner, then the dynamic, then
+  // the owner ... partition (the first part under the default, adaptive). Both the preparation and
+  // the shear stage are interrupted at least once (each needs more than 1000 steps: checked below).
   Result r = run({(dir / "small.toml").string(), "--out", b.string(), "--threads", "2", "--stop-after", "1000"});
   int stops = 0;
   while (r.code == 3 && stops < 100) {
     ++stops;
     r = run({(dir / "small.toml").string(), "--out", b.string(), "--resume", "--threads", stops % 2 ? "3" : "2",
-             "--stop-after", "1000"});
+             "--thread-partition", stops % 2 ? "owner" : "dynamic", "--stop-after", "1000"});
   }
   REQUIRE(r.code == 0);
   const std::string test = "p-b0.50-p0_100kPa";
@@ -520,6 +526,7 @@ TEST_CASE("triaxial: --list, --task and the cluster subcommand: bad input exits 
       {{single, "--out", out, "--task", "0"}, "has one test, not a campaign"},
       {{"slurm", single, "--out", out}, "has one test, not a campaign"},
       {{"slurm", c, "--out", out, "--time", "90"}, "--time = 90: allowed: HH:MM:SS or D-HH:MM:SS"},
+      {{"slurm", c, "--out", out, "--thread-partition", "static"}, "--thread-partition: static not in {adaptive"},
   };
   for (const Case& k : cases) {
     const Result r = run(k.args);
@@ -553,12 +560,13 @@ TEST_CASE("triaxial: --list, --task and the cluster subcommand: bad input exits 
   }
   // Without --submit the scripts are written for a person to read: the test array's size and
   // its task offset, the chained or arrayed preparation, the dependencies.
-  const Result scripts = run({"slurm", c, "--out", (dir / "cluster").string(), "--max-running", "4"});
+  const Result scripts = run(
+      {"slurm", c, "--out", (dir / "cluster").string(), "--max-running", "4", "--thread-partition", "owner"});
   INFO(scripts.err);
   REQUIRE(scripts.code == 0);
   const std::string tests = read(dir / "cluster" / "slurm" / "tests.sbatch");
   CHECK(tests.find("#SBATCH --array=0-1%4") != std::string::npos);
-  CHECK(tests.find("--task \"$((1 + SLURM_ARRAY_TASK_ID))\"") != std::string::npos);
+  CHECK(tests.find("--resume --thread-partition owner --task \"$((1 + SLURM_ARRAY_TASK_ID))\"") != std::string::npos);
   CHECK(read(dir / "cluster" / "slurm" / "prepare.sbatch").find("#SBATCH --array=0-0%4") != std::string::npos);
   CHECK(read(dir / "cluster" / "slurm" / "submit.sh").find("--dependency=afterok:") != std::string::npos);
   CHECK(read(dir / "cluster" / "campaign.toml") == campaign);
