@@ -1,8 +1,9 @@
 #!/usr/bin/python3
 """Thread scaling as a distribution, measured side by side: rounds of
 
-    probe      dem-bench --probe: T register-only FP chains against one, and the cache-line
-               ping-pong between vCPUs 0 and 1 (what the machine allows, without any DEM code)
+    probe      dem-bench --probe: T register-only FP chains against one, the cache-line
+               ping-pong between vCPUs 0 and 1, and one thread against memory (a dependent load
+               over 16 MiB, a read stream over 64 MiB): what the machine allows, without any DEM code
     one        dem-bench, 1 thread
     owner      dem-bench, T threads, owner partition with its halo (--partition owner)
     dynamic    dem-bench, T threads, work-stealing partition (--partition dynamic)
@@ -124,6 +125,8 @@ def main():
             out, _, foreign = timed([args.bench, "--probe", "--threads", str(max(threads))])
             p = json.loads(out)
             row.update(alu_ratio=p["alu_ratio"], pingpong_ns=p["pingpong_ns"], probe_foreign=foreign)
+            if "chase_ns" in p:  # older dem-bench binaries have no memory probe
+                row.update(chase_ns=p["chase_ns"], stream_gbs=p["stream_gbs"])
             runs = [("one", ["--threads", "1"])]
             for T in threads:
                 runs += [(name(k, T), ["--threads", str(T), "--partition", k]) for k in partitions]
@@ -191,6 +194,21 @@ def main():
     a = q(col("alu_ratio"))
     print(f"  register-only {max(threads)}/1 ratio {a[0]:.2f} {a[1]:.2f} {a[2]:.2f}; ping-pong ns "
           + " ".join(f"{x:.0f}" for x in q(col('pingpong_ns'))))
+    # The host's own drift: a T-thread run exactly T times the 1-thread run of its round would score
+    # T p10(one) / median(one) in the form p10(T threads) / median(one).
+    print(f"  1-thread p10 / median {np.percentile(col('one'), 10) / one_median:.2f}: runs exactly T times the "
+          "1-thread run of their round would give p10 / median one " + ", ".join(
+              f"{T * np.percentile(col('one'), 10) / one_median:.2f} (T = {T})" for T in threads))
+    if all("chase_ns" in row for row in rows):
+        c, s = col("chase_ns"), col("stream_gbs")
+        print("  memory alone, 1 thread: dependent load over 16 MiB ns " + " ".join(f"{x:.0f}" for x in q(c))
+              + "; read stream GB/s " + " ".join(f"{x:.1f}" for x in q(s)))
+        if len(rows) > 2:
+            for k in keys:
+                r_c = np.corrcoef(np.log(col(k)), np.log(c))[0, 1]
+                r_s = np.corrcoef(np.log(col(k)), np.log(s))[0, 1]
+                print(f"  correlation over rounds of log({k}) with log(load ns) {r_c:+.2f}, "
+                      f"with log(stream) {r_s:+.2f}")
     quiet = [row for row in rows if max(v for k, v in row.items() if k.endswith("_foreign")) < 0.1]
     print(f"  rounds with no other process above 0.1 CPU: {len(quiet)} of {len(rows)}")
     print(f"wrote {args.csv}")

@@ -396,7 +396,7 @@ static int bench_main(int argc, char** argv) {
           "usage: dem-bench [--scene FILE] [--steps N] [--threads T] [--deform RATE] [--rolling none|epsd2|epsd|cdt]\n"
           "                 [--tangential history|incremental] [--normal hertz|hooke [--vchar V]] [--compat] [--sort STEPS] [--serial] [--partition adaptive|owner|dynamic|fixed] [--json]\n"
           "       dem-bench --costs [--scene FILE] [--steps N] [--threads T] [--rounds R]\n"
-          "       dem-bench --probe [--threads T]   (the machine alone: register-only scaling, ping-pong)\n"
+          "       dem-bench --probe [--threads T]   (the machine alone: register-only scaling, ping-pong, memory)\n"
           "       dem-bench --scaling [--scene FILE] [--steps N] [--threads T] [--rounds R] [--deform RATE] [--partition P] [--probe] [--json]\n");
       return 0;
     } else {
@@ -422,8 +422,10 @@ static int bench_main(int argc, char** argv) {
   if (probe) {  // the machine alone (probe.hpp), for scripts that time other programs in the same rounds
     const int t = threads > 0 ? threads : available_cpus();
     const double a1 = bench::alu_rate(1, 0.2);
-    std::printf("{\"threads\": %d, \"alu_ratio\": %.6g, \"pingpong_ns\": %.6g}\n", t, bench::alu_rate(t, 0.2) / a1,
-                bench::pingpong_ns(5));
+    std::printf("{\"threads\": %d, \"alu_ratio\": %.6g, \"pingpong_ns\": %.6g, \"chase_ns\": %.6g, "
+                "\"stream_gbs\": %.6g}\n",
+                t, bench::alu_rate(t, 0.2) / a1, bench::pingpong_ns(5), bench::chase_ns(std::size_t{16} << 20),
+                bench::stream_gbs(std::size_t{64} << 20));
     return 0;
   }
   const ExecutorConfig exec{serial ? Backend::serial : Backend::tbb, threads, partition};

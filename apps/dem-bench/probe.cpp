@@ -10,6 +10,8 @@
 #include <cmath>
 #include <fstream>
 #include <limits>
+#include <numeric>
+#include <random>
 #include <sstream>
 #include <string>
 #include <thread>
@@ -107,6 +109,58 @@ double pingpong_ns(int samples) {
   }
   std::sort(ns.begin(), ns.end());
   return ns[ns.size() / 2];
+}
+
+double chase_ns(std::size_t bytes, int samples) {
+  // One link per 64-byte line; the lines linked in one cycle through all of them in a shuffled
+  // order, so that neither the hardware prefetchers nor the neighbouring line help.
+  constexpr std::size_t k_stride = 64 / sizeof(std::size_t);  // one link per line
+  const std::size_t lines = std::max<std::size_t>(bytes / 64, 2);
+  std::vector<std::size_t> order(lines);
+  std::iota(order.begin(), order.end(), std::size_t{0});
+  std::mt19937_64 rng(12345);
+  for (std::size_t k = lines - 1; k > 0; --k) std::swap(order[k], order[rng() % k]);
+  std::vector<std::size_t> next(lines * k_stride, 0);
+  for (std::size_t k = 0; k < lines; ++k) next[order[k] * k_stride] = order[(k + 1) % lines] * k_stride;
+  std::size_t at = 0;
+  for (std::size_t k = 0; k < lines; ++k) at = next[at];  // one lap untimed: the pages touched
+  constexpr long k_hops = 200000;                         // ~10-40 ms
+  std::vector<double> ns;
+  for (int s = 0; s < samples; ++s) {
+    const auto t0 = std::chrono::steady_clock::now();
+    for (long h = 0; h < k_hops; ++h) at = next[at];
+    ns.push_back(std::chrono::duration<double, std::nano>(std::chrono::steady_clock::now() - t0).count() /
+                 double(k_hops));
+  }
+  volatile std::size_t sink = at;  // the chain's end is used, so the loop is not removed
+  (void)sink;
+  std::sort(ns.begin(), ns.end());
+  return ns[ns.size() / 2];
+}
+
+double stream_gbs(std::size_t bytes, int samples) {
+  std::vector<double> a(std::max<std::size_t>(bytes / sizeof(double), 1), 1.0);
+  double sum = 0.0;
+  std::vector<double> gbs;
+  for (int s = 0; s <= samples; ++s) {
+    const auto t0 = std::chrono::steady_clock::now();
+    // Four running sums, so that the adds' latency does not bound the loop.
+    double s0 = 0, s1 = 0, s2 = 0, s3 = 0;
+    const std::size_t n4 = a.size() / 4 * 4;
+    for (std::size_t k = 0; k < n4; k += 4) {
+      s0 += a[k];
+      s1 += a[k + 1];
+      s2 += a[k + 2];
+      s3 += a[k + 3];
+    }
+    sum += s0 + s1 + s2 + s3;
+    const double t = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    if (s > 0) gbs.push_back(double(n4 * sizeof(double)) / t / 1e9);  // the first pass touches the pages
+  }
+  volatile double sink = sum;
+  (void)sink;
+  std::sort(gbs.begin(), gbs.end());
+  return gbs[gbs.size() / 2];
 }
 
 CpuAccount::CpuAccount() : start_(take()) {}
