@@ -1,7 +1,7 @@
 #!/usr/bin/python3
 """Thread scaling as a distribution, measured side by side: rounds of
 
-    probe      dem-bench --probe: T register-only FP chains against one, the cache-line
+    probe      dem-bench --probe: one register-only FP chain alone, T of them against one, the cache-line
                ping-pong between vCPUs 0 and 1, and one thread against memory (a dependent load
                over 16 MiB, a read stream over 64 MiB): what the machine allows, without any DEM code
     one        dem-bench, 1 thread
@@ -127,6 +127,8 @@ def main():
             row.update(alu_ratio=p["alu_ratio"], pingpong_ns=p["pingpong_ns"], probe_foreign=foreign)
             if "chase_ns" in p:  # older dem-bench binaries have no memory probe
                 row.update(chase_ns=p["chase_ns"], stream_gbs=p["stream_gbs"])
+            if "alu_one" in p:
+                row.update(alu_one=p["alu_one"])
             runs = [("one", ["--threads", "1"])]
             for T in threads:
                 runs += [(name(k, T), ["--threads", str(T), "--partition", k]) for k in partitions]
@@ -199,16 +201,18 @@ def main():
     print(f"  1-thread p10 / median {np.percentile(col('one'), 10) / one_median:.2f}: runs exactly T times the "
           "1-thread run of their round would give p10 / median one " + ", ".join(
               f"{T * np.percentile(col('one'), 10) / one_median:.2f} (T = {T})" for T in threads))
-    if all("chase_ns" in row for row in rows):
-        c, s = col("chase_ns"), col("stream_gbs")
-        print("  memory alone, 1 thread: dependent load over 16 MiB ns " + " ".join(f"{x:.0f}" for x in q(c))
-              + "; read stream GB/s " + " ".join(f"{x:.1f}" for x in q(s)))
-        if len(rows) > 2:
-            for k in keys:
-                r_c = np.corrcoef(np.log(col(k)), np.log(c))[0, 1]
-                r_s = np.corrcoef(np.log(col(k)), np.log(s))[0, 1]
-                print(f"  correlation over rounds of log({k}) with log(load ns) {r_c:+.2f}, "
-                      f"with log(stream) {r_s:+.2f}")
+    # What the machine alone did in each round, against what each program did (probe.hpp).
+    probes = [(k, label) for k, label in (("alu_one", "register-only chain, 1 thread"),
+                                          ("chase_ns", "dependent load over 16 MiB, ns"),
+                                          ("stream_gbs", "read stream over 64 MiB, GB/s"))
+              if all(k in row for row in rows)]
+    for k, label in probes:
+        v = col(k) / (1e6 if k == "alu_one" else 1)
+        print(f"  {label}{' (M/s)' if k == 'alu_one' else ''}: " + " ".join(f"{x:.4g}" for x in q(v)))
+    if probes and len(rows) > 2:
+        for k in keys:
+            print(f"  correlation over rounds of log({k}) with log of " + ", ".join(
+                f"{p} {np.corrcoef(np.log(col(k)), np.log(col(p)))[0, 1]:+.2f}" for p, _ in probes))
     quiet = [row for row in rows if max(v for k, v in row.items() if k.endswith("_foreign")) < 0.1]
     print(f"  rounds with no other process above 0.1 CPU: {len(quiet)} of {len(rows)}")
     print(f"wrote {args.csv}")

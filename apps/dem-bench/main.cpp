@@ -422,9 +422,9 @@ static int bench_main(int argc, char** argv) {
   if (probe) {  // the machine alone (probe.hpp), for scripts that time other programs in the same rounds
     const int t = threads > 0 ? threads : available_cpus();
     const double a1 = bench::alu_rate(1, 0.2);
-    std::printf("{\"threads\": %d, \"alu_ratio\": %.6g, \"pingpong_ns\": %.6g, \"chase_ns\": %.6g, "
-                "\"stream_gbs\": %.6g}\n",
-                t, bench::alu_rate(t, 0.2) / a1, bench::pingpong_ns(5), bench::chase_ns(std::size_t{16} << 20),
+    std::printf("{\"threads\": %d, \"alu_one\": %.6g, \"alu_ratio\": %.6g, \"pingpong_ns\": %.6g, "
+                "\"chase_ns\": %.6g, \"stream_gbs\": %.6g}\n",
+                t, a1, bench::alu_rate(t, 0.2) / a1, bench::pingpong_ns(5), bench::chase_ns(std::size_t{16} << 20),
                 bench::stream_gbs(std::size_t{64} << 20));
     return 0;
   }

@@ -1,6 +1,8 @@
 #pragma once
 // What the machine allows at a given moment, measured without the engine (dem-bench --scaling,
 // per round): is a second thread a second core right now?
+//   - alu_one: one thread's rate on that chain alone (iterations per second): the core's own speed
+//     (clock, a sibling hardware thread busy, time taken by the host), without memory.
 //   - alu_ratio: T threads each running a chain of dependent floating-point operations on
 //     registers only (no memory, nothing shared) against one thread alone. On T free cores it is
 //     T; where the host runs two of the guest's vCPUs on the two hardware threads of one core, or
