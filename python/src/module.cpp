@@ -13,7 +13,9 @@
 #include <pybind11/pybind11.h>
 #include <pybind11/stl.h>
 
+#include <algorithm>
 #include <cmath>
+#include <iterator>
 #include <limits>
 #include <memory>
 #include <optional>
@@ -611,20 +613,33 @@ PYBIND11_MODULE(_sandcell, m) {
       .def_readonly("inertial_number_axial", &Measures::inertial_number_axial);
 
   py::class_<PyWorld>(m, "World",
-                      "One scene: World(model, state, threads=1). Arrays are read-only NumPy views into the engine, "
+                      "One scene: World(model, state, threads=1, initial_forces=True, partition='adaptive'). Arrays "
+                      "are read-only NumPy views into the engine, "
                       "valid until the next step (docs/python.md)")
-      .def(py::init([](const Model& model, const State& state, int threads, bool initial_forces) {
+      .def(py::init([](const Model& model, const State& state, int threads, bool initial_forces,
+                       const std::string& partition) {
              if (threads < 1) throw std::invalid_argument("threads = " + std::to_string(threads) + ": must be >= 1");
+             // How the threads share each pass; every one gives bitwise the same results.
+             const std::pair<const char*, Partition> partitions[] = {{"adaptive", Partition::adaptive},
+                                                                     {"owner", Partition::owner},
+                                                                     {"dynamic", Partition::dynamic},
+                                                                     {"fixed", Partition::fixed}};
+             const auto named = std::find_if(std::begin(partitions), std::end(partitions),
+                                             [&](const auto& p) { return partition == p.first; });
+             if (named == std::end(partitions))
+               throw std::invalid_argument("partition = '" + partition +
+                                           "': allowed 'adaptive', 'owner', 'dynamic' or 'fixed'");
              PyWorld w;
              if (const PythonPath* p = model.servo.custom.target<PythonPath>()) {
                w.slot = p->slot;
                w.path = p->fn;
              }
-             w.world = std::make_unique<World>(model, state, systems_for(model), ExecutorConfig{Backend::tbb, threads},
-                                               initial_forces);
+             w.world = std::make_unique<World>(model, state, systems_for(model),
+                                               ExecutorConfig{Backend::tbb, threads, named->second}, initial_forces);
              return w;
            }),
-           py::arg("model"), py::arg("state"), py::arg("threads") = 1, py::arg("initial_forces") = true)
+           py::arg("model"), py::arg("state"), py::arg("threads") = 1, py::arg("initial_forces") = true,
+           py::arg("partition") = "adaptive")
       .def(
           "step", [](PyWorld& w, std::uint64_t n) { w.guarded([&] { w.world->step(n); }); }, py::arg("n") = 1,
           "Advances n steps (the GIL is released; a Python path takes it on servo updates)")
