@@ -13,6 +13,8 @@
 #include <cstddef>
 #include <cstdint>
 #include <memory>
+#include <optional>
+#include <string_view>
 #include <vector>
 
 namespace sandcell {
@@ -37,6 +39,17 @@ enum class Partition {
              // faster then runs for a while, and the trial is repeated; on one thread, owner. Every
              // result is the same whichever runs, so the choice costs no determinism
 };
+
+/// The partitions' names, indexed by the enum's value: what dem-bench --partition, triaxial
+/// --thread-partition and the Python World's `partition` take.
+inline constexpr std::array<std::string_view, 4> k_partition_names{"owner", "dynamic", "fixed", "adaptive"};
+inline std::string_view partition_name(Partition p) { return k_partition_names[static_cast<std::size_t>(p)]; }
+/// The partition named `name` (exactly, as in k_partition_names), or none.
+inline std::optional<Partition> partition_from_name(std::string_view name) {
+  for (std::size_t k = 0; k < k_partition_names.size(); ++k)
+    if (k_partition_names[k] == name) return static_cast<Partition>(k);
+  return std::nullopt;
+}
 
 /// The trials of Partition::adaptive. Each of the four batches of a trial runs at least
 /// `batch_steps` steps and `batch_seconds` of step time; its first step (after a switch: the
@@ -124,9 +137,9 @@ class Executor {
 
   /// Like parallel_for, over the shares of `shares` (ascending bounds), each cut into chunks of
   /// `grain` counted from its own first index. Under Partition::owner (or adaptive running owner)
-  /// share k runs on thread k; under the others every chunk goes to the common pool. The chunk boundaries depend on the shares: a
-  /// body whose result per index does not depend on where its chunk begins gives the same results
-  /// whatever the shares.
+  /// share k runs on thread k; under the others every chunk goes to the common pool. The chunk
+  /// boundaries depend on the shares: a body whose result per index does not depend on where its
+  /// chunk begins gives the same results whatever the shares.
   void parallel_for_shares(const Shares& shares, std::size_t grain, FunctionRef<void(std::size_t, std::size_t)> body);
 
   /// Maximum number of partials of a reduction; the chunk size grows past `grain` to respect it.

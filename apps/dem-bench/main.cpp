@@ -43,6 +43,7 @@
 #include <cstdio>
 #include <functional>
 #include <memory>
+#include <optional>
 #include <thread>
 #include <vector>
 #include <cstdlib>
@@ -353,16 +354,9 @@ static int bench_main(int argc, char** argv) {
       probe = true;
     else if (arg == "--partition") {
       const std::string_view v = value();
-      if (v == "dynamic")
-        partition = Partition::dynamic;
-      else if (v == "fixed")
-        partition = Partition::fixed;
-      else if (v == "owner")
-        partition = Partition::owner;
-      else if (v == "adaptive")
-        partition = Partition::adaptive;
-      else
-        usage_error("--partition = '" + std::string(v) + "': allowed adaptive, dynamic, fixed, owner");
+      const std::optional<Partition> named = partition_from_name(v);
+      if (!named) usage_error("--partition = '" + std::string(v) + "': allowed adaptive, dynamic, fixed, owner");
+      partition = *named;
     } else if (arg == "--rounds")
       rounds = static_cast<int>(parse_number("--rounds", value(), 1, 1000));
     else if (arg == "--rolling") {
@@ -422,10 +416,11 @@ static int bench_main(int argc, char** argv) {
   if (probe) {  // the machine alone (probe.hpp), for scripts that time other programs in the same rounds
     const int t = threads > 0 ? threads : available_cpus();
     const double a1 = bench::alu_rate(1, 0.2);
-    std::printf("{\"threads\": %d, \"alu_one\": %.6g, \"alu_ratio\": %.6g, \"pingpong_ns\": %.6g, "
-                "\"chase_ns\": %.6g, \"stream_gbs\": %.6g}\n",
-                t, a1, bench::alu_rate(t, 0.2) / a1, bench::pingpong_ns(5), bench::chase_ns(std::size_t{16} << 20),
-                bench::stream_gbs(std::size_t{64} << 20));
+    std::printf(
+        "{\"threads\": %d, \"alu_one\": %.6g, \"alu_ratio\": %.6g, \"pingpong_ns\": %.6g, "
+        "\"chase_ns\": %.6g, \"stream_gbs\": %.6g}\n",
+        t, a1, bench::alu_rate(t, 0.2) / a1, bench::pingpong_ns(5), bench::chase_ns(std::size_t{16} << 20),
+        bench::stream_gbs(std::size_t{64} << 20));
     return 0;
   }
   const ExecutorConfig exec{serial ? Backend::serial : Backend::tbb, threads, partition};
@@ -451,8 +446,7 @@ static int bench_main(int argc, char** argv) {
   const auto& graph = world.graph();
   const unsigned long long digest = state_digest(world.state());
   const PartitionSteps& ps = world.executor().partition_steps();
-  const char* const partition_names[] = {"owner", "dynamic", "fixed", "adaptive"};
-  const char* partition_name = serial ? "serial" : partition_names[static_cast<int>(partition)];
+  const std::string partition_used{serial ? std::string_view("serial") : partition_name(partition)};
 
   if (json) {
     std::printf(
@@ -467,7 +461,7 @@ static int bench_main(int argc, char** argv) {
         scene.c_str(), std::string(build_arch()).c_str(), n, steps, world.executor().threads(),
         serial ? "serial" : "tbb", deform, model.contact.liggghts_compat ? "true" : "false", wall, rate, 2.0 * c0 / n,
         2.0 * c1 / n, static_cast<unsigned long long>(builds), peak_mib, s0.trace() / 3, s1.trace() / 3, s1(0, 0),
-        s1(1, 1), s1(2, 2), s1(0, 1), s1(0, 2), s1(1, 2), world.state().cell.length[2], digest, partition_name,
+        s1(1, 1), s1(2, 2), s1(0, 1), s1(0, 2), s1(1, 2), world.state().cell.length[2], digest, partition_used.c_str(),
         static_cast<unsigned long long>(ps.owner), static_cast<unsigned long long>(ps.dynamic),
         static_cast<unsigned long long>(ps.switches), static_cast<unsigned long long>(ps.trials));
     for (std::size_t k = 0; k < graph.size(); ++k)
@@ -479,7 +473,7 @@ static int bench_main(int argc, char** argv) {
   std::printf("particles        %zu\n", n);
   std::printf("steps            %ld\n", steps);
   std::printf("threads          %d (%s)\n", world.executor().threads(), serial ? "serial backend" : "tbb");
-  std::printf("partition        %s", partition_name);
+  std::printf("partition        %s", partition_used.c_str());
   if (ps.trials > 0)
     std::printf(" (steps: %llu owner, %llu dynamic; trials %llu, switches %llu)",
                 static_cast<unsigned long long>(ps.owner), static_cast<unsigned long long>(ps.dynamic),

@@ -78,6 +78,11 @@ std::string num(double v, const char* format = "%.6g") {
   return buf;
 }
 
+// The partitions' names for CLI11 (IsMember lists them in its message).
+CLI::IsMember partition_names() {
+  return CLI::IsMember(std::vector<std::string>(k_partition_names.begin(), k_partition_names.end()));
+}
+
 struct Options {
   std::string config_path;
   int threads = 0;
@@ -1218,10 +1223,7 @@ Plan make_plan(Config config_in, const Options& options) {
   const int total = options.threads > 0 ? options.threads : available_cpus();
   plan.job_threads = std::max(1, total / std::max(1, config.parallel));
   plan.prepare_threads = config.prepare.chain ? total : plan.job_threads;
-  plan.partition = options.partition == "owner"     ? Partition::owner
-                   : options.partition == "dynamic" ? Partition::dynamic
-                   : options.partition == "fixed"   ? Partition::fixed
-                                                    : Partition::adaptive;  // CLI11 allowed only these four
+  plan.partition = partition_from_name(options.partition).value();  // CLI11 let only the names through
   return plan;
 }
 
@@ -1551,7 +1553,7 @@ static int slurm_main(int argc, const char* const* argv, std::ostream& out, std:
   app.add_option("--partition", c.partition, "partition (default: the cluster's)");
   app.add_option("--thread-partition", c.thread_partition,
                  "passed on to every task: how its threads share each pass (triaxial --help; default adaptive)")
-      ->check(CLI::IsMember({"adaptive", "owner", "dynamic", "fixed"}));
+      ->check(partition_names());
   app.add_option("--max-running", c.max_running, "tasks of an array running at once (0: no limit)")
       ->check(CLI::Range(0, 100000));
   app.add_flag("--submit", submit, "submit the scripts with sbatch after writing them");
@@ -1765,7 +1767,7 @@ static void add_run_options(CLI::App& app, CommandLine& cl) {
                  "how the threads share each pass: adaptive (default: owner or dynamic, whichever runs this "
                  "host's steps faster, timed during the run), owner (each thread keeps its particles), dynamic "
                  "(work stealing) or fixed; the results are bitwise the same for all")
-      ->check(CLI::IsMember({"adaptive", "owner", "dynamic", "fixed"}));
+      ->check(partition_names());
   app.add_option("--out", options.out, "output directory (default: results/<config name>)");
   app.add_flag("--resume", options.resume, "continue a killed run from its checkpoints");
   app.add_flag("--overwrite", options.overwrite, "replace the results of an earlier run in the output directory");

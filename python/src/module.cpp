@@ -13,9 +13,7 @@
 #include <pybind11/pybind11.h>
 #include <pybind11/stl.h>
 
-#include <algorithm>
 #include <cmath>
-#include <iterator>
 #include <limits>
 #include <memory>
 #include <optional>
@@ -620,13 +618,8 @@ PYBIND11_MODULE(_sandcell, m) {
                        const std::string& partition) {
              if (threads < 1) throw std::invalid_argument("threads = " + std::to_string(threads) + ": must be >= 1");
              // How the threads share each pass; every one gives bitwise the same results.
-             const std::pair<const char*, Partition> partitions[] = {{"adaptive", Partition::adaptive},
-                                                                     {"owner", Partition::owner},
-                                                                     {"dynamic", Partition::dynamic},
-                                                                     {"fixed", Partition::fixed}};
-             const auto named = std::find_if(std::begin(partitions), std::end(partitions),
-                                             [&](const auto& p) { return partition == p.first; });
-             if (named == std::end(partitions))
+             const std::optional<Partition> named = partition_from_name(partition);
+             if (!named)
                throw std::invalid_argument("partition = '" + partition +
                                            "': allowed 'adaptive', 'owner', 'dynamic' or 'fixed'");
              PyWorld w;
@@ -635,7 +628,7 @@ PYBIND11_MODULE(_sandcell, m) {
                w.path = p->fn;
              }
              w.world = std::make_unique<World>(model, state, systems_for(model),
-                                               ExecutorConfig{Backend::tbb, threads, named->second}, initial_forces);
+                                               ExecutorConfig{Backend::tbb, threads, *named}, initial_forces);
              return w;
            }),
            py::arg("model"), py::arg("state"), py::arg("threads") = 1, py::arg("initial_forces") = true,

@@ -526,7 +526,8 @@ TEST_CASE("triaxial: --list, --task and the cluster subcommand: bad input exits 
       {{single, "--out", out, "--task", "0"}, "has one test, not a campaign"},
       {{"slurm", single, "--out", out}, "has one test, not a campaign"},
       {{"slurm", c, "--out", out, "--time", "90"}, "--time = 90: allowed: HH:MM:SS or D-HH:MM:SS"},
-      {{"slurm", c, "--out", out, "--thread-partition", "static"}, "--thread-partition: static not in {adaptive"},
+      {{"slurm", c, "--out", out, "--thread-partition", "static"},
+       "--thread-partition: static not in {owner,dynamic,fixed,adaptive}"},
   };
   for (const Case& k : cases) {
     const Result r = run(k.args);

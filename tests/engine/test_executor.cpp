@@ -173,6 +173,15 @@ std::string feed(Executor& exec, int steps, double owner_s, double dynamic_s, in
 }
 }  // namespace
 
+TEST_CASE("partition names: each partition's name gives it back, and nothing else is a name") {
+  for (const Partition p : {Partition::owner, Partition::dynamic, Partition::fixed, Partition::adaptive}) {
+    CAPTURE(partition_name(p));
+    CHECK(partition_from_name(partition_name(p)) == p);
+  }
+  CHECK(partition_name(Partition::adaptive) == "adaptive");
+  for (const char* bad : {"", "static", "Owner", "owner ", "serial"}) CHECK(!partition_from_name(bad));
+}
+
 TEST_CASE("adaptive partition: a trial runs owner, dynamic, dynamic, owner, then holds the faster by median") {
   // Batches of 3 steps (the first of each not timed), no time floor; the hold is 2x the trial.
   // Durations are powers of two (ms and 2 ms, about), so that the hold's countdown is exact.
