@@ -120,6 +120,9 @@ struct ServoSettings {
   double gain = 0.0;                // 1/s, g in eps_dot = g (err + I / T_i), err = (sigma* - sigma)/|sigma*|
   double integral_time = 0.0;       // s, T_i of the integral term (I = time integral of err); 0: none (P law)
   double max_rate = 0.0;            // 1/s, cap on |eps_dot| of a stress-controlled axis
+  double max_rate_ratio = 0.0;      // -, > 0: the cap is max(max_rate, ratio x the largest |eps_dot| of the
+                                    // strain-controlled axes at this update), so it follows an axial rate
+                                    // that grows with p at a set inertial number; 0: max_rate alone
   int interval = 1;                 // steps between stress measurements and servo updates
   bool kinetic_stress = false;      // include the kinetic part sum m v~ (x) v~ / V in the measured stress
   PathFunction custom;              // the path of StressPath::custom (control, strain_rate, target unused)

@@ -13,6 +13,8 @@ void validate(const ServoSettings& servo) {
   if (!(servo.gain > 0.0) || !std::isfinite(servo.gain)) fail("gain", servo.gain, "must be a finite value > 0 1/s");
   if (!(servo.max_rate > 0.0) || !std::isfinite(servo.max_rate))
     fail("max_rate", servo.max_rate, "must be a finite value > 0 1/s");
+  if (!(servo.max_rate_ratio >= 0.0) || !std::isfinite(servo.max_rate_ratio))
+    fail("max_rate_ratio", servo.max_rate_ratio, "must be a finite value >= 0 (0: max_rate alone)");
   if (servo.interval < 1) fail("interval", servo.interval, "must be >= 1 step");
   if (!(servo.integral_time >= 0.0) || !std::isfinite(servo.integral_time))
     fail("integral_time", servo.integral_time, "must be a finite value >= 0 s (0: no integral term)");

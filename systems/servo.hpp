@@ -1,7 +1,8 @@
 #pragma once
 // Periodic servo (docs/physics.md section 6, Huang et al. 2014 style): per-axis strain rates of the cell from the
 // stress the homogenizer measured in the same step, by a PI law.
-//   stress-controlled axis k: eps_dot_k = clamp(g (err_k + I_k / T_i), -max, +max),
+//   stress-controlled axis k: eps_dot_k = clamp(g (err_k + I_k / T_i), -cap, +cap),
+//     cap = max_rate, or max(max_rate, max_rate_ratio x |fastest strain-controlled rate|)
 //     err_k = (sigma*_k - sigma_k)/|sigma*_k|, I_k its time integral (Cell::servo_integral, checkpointed,
 //     advanced only while the output is inside the cap); T_i = 0 gives the P law g err_k
 //   strain-controlled axis k: eps_dot_k = the set rate (ramped from 0 over ramp_time, or following the
@@ -33,7 +34,8 @@ struct Servo {
 Vec3 path_targets(const ServoSettings& servo, double sigma1);
 
 /// Cell strain rates (compression positive, 1/s) the servo sets for a measured stress diagonal:
-/// eps_dot_k = clamp(g (err_k + I_k / T_i), +-max_rate), err_k = (sigma*_k - sigma_k)/|sigma*_k|.
+/// eps_dot_k = clamp(g (err_k + I_k / T_i), +-cap), err_k = (sigma*_k - sigma_k)/|sigma*_k|, cap = max_rate,
+/// or with max_rate_ratio > 0 max(max_rate, max_rate_ratio x the fastest strain-controlled axis's rate).
 /// With `integral` (the cell's servo_integral) and servo.integral_time > 0, I_k advances by
 /// err_k * interval (s) first, unless the output sits at the cap (anti-windup); otherwise a P law.
 /// Strain-controlled axes get servo.strain_rate (times I sqrt(p/rho) / d50 with p the mean of

@@ -393,7 +393,11 @@ Model shear_model(const Plan& plan, const TestSpec& test) {
   s.p = test.p0;
   s.sigma3 = test.p0;
   s.b = test.b;
+  // The default cap follows the axial rate (10 x, the rate at p0 a floor): at a set inertial number the
+  // axial rate grows with sqrt(p), and a cap fixed at p0 ran the b = 1 constant-sigma3 test away
+  // (docs/physics.md section 6). An explicit shear.max_rate is a fixed cap, as set.
   s.max_rate = h.max_rate > 0.0 ? h.max_rate : 10.0 * rate0;
+  s.max_rate_ratio = h.max_rate > 0.0 ? 0.0 : 10.0;
   s.gain = h.gain > 0.0 ? h.gain : derived_gain(k_shear_alpha, test.p0, m, plan.servo_time);
   s.integral_time = h.integral_time > 0.0 ? h.integral_time : k_integral_units * plan.servo_time;
   s.interval = h.servo_interval;
