@@ -119,6 +119,9 @@ struct ServoSettings {
   double sigma3 = 0.0;              // Pa, minor stress of the constant-sigma3 path
   double gain = 0.0;                // 1/s, g in eps_dot = g (err + I / T_i), err = (sigma* - sigma)/|sigma*|
   double integral_time = 0.0;       // s, T_i of the integral term (I = time integral of err); 0: none (P law)
+  double integral_strain = 0.0;     // -, > 0: T_i is at most integral_strain / (the fastest strain-controlled
+                                    // axis's rate at this update), so the integral keeps pace with a fast test;
+                                    // 0: integral_time alone
   double max_rate = 0.0;            // 1/s, cap on |eps_dot| of a stress-controlled axis
   double max_rate_ratio = 0.0;      // -, > 0: the cap is max(max_rate, ratio x the largest |eps_dot| of the
                                     // strain-controlled axes at this update), so it follows an axial rate

@@ -15,6 +15,8 @@ void validate(const ServoSettings& servo) {
     fail("max_rate", servo.max_rate, "must be a finite value > 0 1/s");
   if (!(servo.max_rate_ratio >= 0.0) || !std::isfinite(servo.max_rate_ratio))
     fail("max_rate_ratio", servo.max_rate_ratio, "must be a finite value >= 0 (0: max_rate alone)");
+  if (!(servo.integral_strain >= 0.0) || !std::isfinite(servo.integral_strain))
+    fail("integral_strain", servo.integral_strain, "must be a finite value >= 0 (0: integral_time alone)");
   if (servo.interval < 1) fail("interval", servo.interval, "must be >= 1 step");
   if (!(servo.integral_time >= 0.0) || !std::isfinite(servo.integral_time))
     fail("integral_time", servo.integral_time, "must be a finite value >= 0 s (0: no integral term)");

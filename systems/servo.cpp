@@ -45,31 +45,43 @@ double stress_scale(const ServoSettings& servo) {
 }  // namespace
 
 namespace {
-// The PI law of one stress-controlled axis on its normalized error, capped at +-cap; `integral`
-// null: a P law.
-double pi_rate(const ServoSettings& servo, double error, double* integral, double interval, double cap) {
-  if (integral == nullptr || !(servo.integral_time > 0.0)) return std::clamp(servo.gain * error, -cap, cap);
+// The PI law of one stress-controlled axis on its normalized error, capped at +-cap, with integral
+// time t_i; `integral` null or t_i = 0: a P law.
+double pi_rate(const ServoSettings& servo, double error, double* integral, double interval, double cap, double t_i) {
+  if (integral == nullptr || !(t_i > 0.0)) return std::clamp(servo.gain * error, -cap, cap);
   // PI: the integral removes the lag a P law keeps while the target moves (error ~ rate / g).
   // Anti-windup: the integral advances only while the output is inside the cap, or when the
   // error would bring it back inside.
   double& i = *integral;
   const double trial_i = i + error * interval;
-  const double trial = servo.gain * (error + trial_i / servo.integral_time);
+  const double trial = servo.gain * (error + trial_i / t_i);
   if (std::abs(trial) <= cap || trial * error < 0.0) i = trial_i;
-  return std::clamp(servo.gain * (error + i / servo.integral_time), -cap, cap);
+  return std::clamp(servo.gain * (error + i / t_i), -cap, cap);
 }
 
-// The cap of the stress-controlled axes: max_rate, or (max_rate_ratio > 0) at least that multiple
-// of the fastest strain-controlled axis. At b = 1 on constant sigma3 the axis of sigma3 extends at
-// twice the axial rate plus the dilation (measured up to 4x at the peak of a dense sample); at a
-// set inertial number the axial rate grows with sqrt(p), so a cap fixed at p0 let the axis of
-// sigma3 fall behind, sigma3 and p rise, the axial rate rise with them: a runaway to 2,000 p0.
-double rate_cap(const ServoSettings& servo, const Vec3& rate, const std::array<AxisControl, 3>& control) {
-  if (!(servo.max_rate_ratio > 0.0)) return servo.max_rate;
+// The cap and the integral time of the stress-controlled axes at one update, from the rates of the
+// strain-controlled axes. The cap: max_rate, or (max_rate_ratio > 0) at least that multiple of the
+// fastest strain-controlled axis. At b = 1 on constant sigma3 the axis of sigma3 extends at twice
+// the axial rate plus the dilation (measured up to 4x at the peak of a dense sample); at a set
+// inertial number the axial rate grows with sqrt(p), so a cap fixed at p0 let the axis of sigma3
+// fall behind, sigma3 and p rise, the axial rate rise with them: a runaway to 2,000 p0.
+// The integral time: integral_time, or (integral_strain > 0) at most the time the fastest axis
+// takes to strain by integral_strain. A target that moves with the axial strain leaves a P law an
+// error ~ rate / g; the integral removes it only if it is short against the strain over which the
+// lateral rates change (the peak: a few 0.1 % of axial strain).
+struct Limits {
+  double cap;
+  double integral_time;
+};
+Limits limits(const ServoSettings& servo, const Vec3& rate, const std::array<AxisControl, 3>& control) {
   double fastest = 0.0;
   for (int k = 0; k < 3; ++k)
     if (control[k] == AxisControl::strain) fastest = std::max(fastest, std::abs(rate[k]));
-  return std::max(servo.max_rate, servo.max_rate_ratio * fastest);
+  Limits l{servo.max_rate, servo.integral_time};
+  if (servo.max_rate_ratio > 0.0) l.cap = std::max(l.cap, servo.max_rate_ratio * fastest);
+  if (servo.integral_strain > 0.0 && servo.integral_time > 0.0 && fastest > 0.0)
+    l.integral_time = std::min(l.integral_time, servo.integral_strain / fastest);
+  return l;
 }
 }  // namespace
 
@@ -88,11 +100,11 @@ Vec3 servo_strain_rates(const ServoSettings& servo, const Vec3& sigma, Vec3* int
     const double full = servo.strain_rate[k] * scale;
     rate[k] = servo.ramp_time > 0.0 && time < servo.ramp_time ? full * (time / servo.ramp_time) : full;
   }
-  const double cap = rate_cap(servo, rate, servo.control);
+  const Limits l = limits(servo, rate, servo.control);
   for (int k = 0; k < 3; ++k) {
     if (servo.control[k] == AxisControl::strain) continue;
     const double error = (target[k] - sigma[k]) / std::max(std::abs(target[k]), floor);
-    rate[k] = pi_rate(servo, error, integral != nullptr ? &(*integral)[k] : nullptr, interval, cap);
+    rate[k] = pi_rate(servo, error, integral != nullptr ? &(*integral)[k] : nullptr, interval, l.cap, l.integral_time);
   }
   return rate;
 }
@@ -121,11 +133,11 @@ Vec3 custom_strain_rates(const ServoSettings& servo, const PathTargets& targets,
   Vec3 rate = Vec3::Zero();
   for (int k = 0; k < 3; ++k)
     if (targets.control[k] == AxisControl::strain) rate[k] = targets.value[k];
-  const double cap = rate_cap(servo, rate, targets.control);
+  const Limits l = limits(servo, rate, targets.control);
   for (int k = 0; k < 3; ++k) {
     if (targets.control[k] != AxisControl::stress) continue;
     const double error = (targets.value[k] - sigma[k]) / std::max(std::abs(targets.value[k]), floor);
-    rate[k] = pi_rate(servo, error, integral != nullptr ? &(*integral)[k] : nullptr, interval, cap);
+    rate[k] = pi_rate(servo, error, integral != nullptr ? &(*integral)[k] : nullptr, interval, l.cap, l.integral_time);
   }
   if (volume_axes == 0) return rate;
   // L <- L (1 + D dt) each step (integrate_initial), D = -rate: after n steps the volume is

@@ -392,6 +392,7 @@ void parse_shear(const toml::table& root, const std::string& source, ShearConfig
   s.number("ramp_strain", h.ramp_strain, 0.0, 1.0, "must be in [0, 1] (axial strain of the rate ramp; 0: none)");
   s.number("gain", h.gain, 0.0, 1e9, "must be >= 0 1/s (0: derived)");
   s.number("integral_time", h.integral_time, 0.0, 1e9, "must be >= 0 s (0: derived)");
+  s.number("integral_strain", h.integral_strain, 0.0, 1.0, "must be in [0, 1] (0: the derived integral time alone)");
   s.number("max_rate", h.max_rate, 0.0, 1e9, "must be >= 0 1/s (0: 10 x the axial rate at p0)");
   s.integer("servo_interval", h.servo_interval, 1, 1'000'000, "must be an integer in [1, 1e6] steps");
   s.number("max_axial_strain", h.max_axial_strain, 1e-9, 2.0, "must be in (0, 2] (logarithmic strain)");
@@ -512,6 +513,10 @@ void check_shear_for_tests(const Config& c, const std::string& source) {
     throw ConfigError(source + ": shear.strain_rate = " + num(c.shear.strain_rate) +
                       " and shear.inertial_number = " + num(c.shear.inertial_number) +
                       ": give exactly one of the two (the axial rate, or the inertial number it follows)");
+  if (c.shear.integral_strain > 0.0 && c.shear.integral_time > 0.0)
+    throw ConfigError(source + ": shear.integral_strain = " + num(c.shear.integral_strain) +
+                      " with shear.integral_time = " + num(c.shear.integral_time) +
+                      ": a set integral time is used as set; give one of the two");
   if (stress_path && !(c.shear.strain_rate > 0.0) && !(c.shear.inertial_number > 0.0))
     throw ConfigError(source +
                       ": shear.strain_rate and shear.inertial_number: neither is given; the stress paths need "

@@ -46,6 +46,8 @@ struct ShearConfig {
   double ramp_strain = 0.0;          // -, axial strain over which the rate rises linearly from 0 (0: none)
   double gain = 0.0;                 // 1/s, lateral servo gain (0: derived, apps/triaxial/README.md)
   double integral_time = 0.0;        // s, integral time of the lateral servo (0: derived, apps/triaxial/README.md)
+  double integral_strain = 0.0;      // -, the integral time is at most the time the axial rate takes to strain by
+                                     // this much (0: 3e-4 at a set inertial number, else none; README.md)
   double max_rate = 0.0;             // 1/s, cap on lateral rates (0: 10 x strain_rate)
   int servo_interval = 1;            // steps between servo updates
   double max_axial_strain = 0.2;     // -, stop at this axial (log) strain

@@ -459,6 +459,7 @@ PYBIND11_MODULE(_sandcell, m) {
       .def_readwrite("integral_time", &ServoSettings::integral_time)
       .def_readwrite("max_rate", &ServoSettings::max_rate)
       .def_readwrite("max_rate_ratio", &ServoSettings::max_rate_ratio)
+      .def_readwrite("integral_strain", &ServoSettings::integral_strain)
       .def_property(
           "interval", [](const ServoSettings& s) { return s.interval; },
           [](ServoSettings& s, int v) {
