@@ -233,15 +233,16 @@ toml::table parse_toml(const std::string& text, const std::string& source) {
 
 // Every top-level key must be one of the known tables.
 void check_sections(const toml::table& root, const std::string& source) {
-  static const char* const sections[] = {"sample",  "material", "contact", "time",
-                                         "prepare", "shear",    "tests",   "output"};
+  static const char* const sections[] = {"sample", "material", "contact", "time", "prepare",
+                                         "shear",  "tests",    "output",  "watch"};
   for (const auto& [key, node] : root) {
     bool known = false;
     for (const char* s : sections) known = known || key.str() == s;
     if (!known || !node.is_table())
       throw ConfigError(source + ": [" + std::string(key.str()) +
                         "]: " + (known ? "must be a table" : "unknown section") +
-                        "; allowed sections: [sample] [material] [contact] [time] [prepare] [shear] [tests] [output]");
+                        "; allowed sections: [sample] [material] [contact] [time] [prepare] [shear] [tests] [output] "
+                        "[watch]");
   }
 }
 
@@ -557,6 +558,21 @@ void check_prepare_step(const Config& c, const std::string& source) {
 
 }  // namespace
 
+// [watch]: the stress-path watchdog's tolerances (ranges as sandcell::validate(PathTolerance)).
+void parse_watch(const toml::table& root, const std::string& source, WatchConfig& w) {
+  Section s = section(root, "watch", source);
+  PathTolerance& t = w.tolerance;
+  s.number("stress", t.stress, 1e-6, 10.0, "must be in [1e-6, 10] (relative error of p or sigma3)");
+  s.number("b", t.b, 1e-6, 1.0, "must be in [1e-6, 1] (absolute error of b)");
+  s.number("rotation", t.rotation, 1e-3, 45.0, "must be in [1e-3, 45] degrees");
+  s.number("shear", t.shear, 1e-6, 10.0, "must be in [1e-6, 10] (largest |shear stress| / p)");
+  s.number("window", t.window, 1e-6, 1.0, "must be in [1e-6, 1] (axial strain)");
+  s.number("overlap", t.overlap, 1e-6, 1.0, "must be in [1e-6, 1] (overlap / radius)");
+  s.number("unbalanced", t.unbalanced, 1e-6, 1e6, "must be in [1e-6, 1e6]");
+  s.boolean("stop", w.stop);
+  s.check_unknown();
+}
+
 Config parse_config(const std::string& text, const std::string& source) {
   Config c;
   c.text = text;
@@ -572,6 +588,7 @@ Config parse_config(const std::string& text, const std::string& source) {
   parse_shear(root, source, c.shear);
   parse_tests(root, source, c);
   parse_output(root, source, c.output);
+  parse_watch(root, source, c.watch);
   check_shear_for_tests(c, source);
   check_prepare_step(c, source);
   return c;

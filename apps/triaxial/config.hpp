@@ -5,6 +5,7 @@
 // values with a ConfigError naming the key, the value and what is allowed.
 #include "engine/generate.hpp"
 #include "engine/model.hpp"
+#include "systems/path_watch.hpp"
 
 #include <cstdint>
 #include <optional>
@@ -75,6 +76,13 @@ struct OutputConfig {
   bool plot = true;                       // PNG of q and eps_v vs eps_1 per test (python3 + matplotlib)
 };
 
+/// [watch]: the stress-path watchdog of the shearing stage (systems/path_watch.hpp). `start` is
+/// not a key: the checks begin at the end of the ramp (shear.ramp_strain).
+struct WatchConfig {
+  PathTolerance tolerance;
+  bool stop = true;  // a test that leaves its path stops there (false: runs to its end, failed all the same)
+};
+
 struct Config {
   std::string text;    // the TOML text as read (stored in every results file)
   std::string source;  // file name, or "<embedded default>"
@@ -87,6 +95,7 @@ struct Config {
   std::vector<TestSpec> tests;  // the campaign: path x b x p0
   int parallel = 1;             // tests run at once (the thread budget is split between them)
   OutputConfig output;
+  WatchConfig watch;
 };
 
 /// The embedded default: ~2000 spheres prepared at 0.5 MPa, sheared along constant p, b = 0.5, to

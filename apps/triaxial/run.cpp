@@ -13,6 +13,7 @@
 #include "engine/world.hpp"
 #include "systems/catalogue.hpp"
 #include "systems/homogenizer.hpp"
+#include "systems/path_watch.hpp"
 
 #include <CLI/CLI.hpp>
 
@@ -210,6 +211,9 @@ void append_row(ResultsFile& results, const State& state, const Measures& m, dou
   results.append("inertial_number", m.inertial_number, "- ((eps_dot_1 - eps_dot_3) d50 sqrt(rho/p))");
   results.append("inertial_number_axial", m.inertial_number_axial,
                  "- (eps_dot_1 d50 sqrt(rho/p): what shear.inertial_number sets)");
+  results.append("rotation", principal_rotation_deg(m.stress),
+                 "degrees (the principal axes' turn off the cell axes, 1/2 asin(2 |tau| / (s1 - s3)))");
+  results.append("shear_ratio", shear_ratio(m.stress), "- (largest |shear stress| / p)");
   results.append("wall_time", wall, "s");
 }
 
@@ -414,6 +418,19 @@ Model shear_model(const Plan& plan, const TestSpec& test) {
   return m;
 }
 
+// The stress-path watchdog of a test ([watch]; systems/path_watch.hpp): its checks begin at the end
+// of the ramp. The strain path has no stress targets and its shear stresses are the material's
+// answer, not a departure: there only the overlap and the unbalanced force are judged.
+PathWatch make_path_watch(const Plan& plan, const TestSpec& test) {
+  PathTolerance t = plan.config.watch.tolerance;
+  t.start = plan.config.shear.ramp_strain;
+  if (test.path == ShearPath::strain) {
+    t.rotation = 45.0;  // the largest turn 1/2 asin(2 |tau| / (s1 - s3)) can give: never beyond
+    t.shear = 10.0;
+  }
+  return PathWatch(shear_model(plan, test).servo, t);
+}
+
 // ---- jobs ---------------------------------------------------------------------------------------
 
 struct Summary {
@@ -426,6 +443,13 @@ struct Summary {
   std::uint64_t steps = 0;
   double wall = 0.0;
   bool critical = false;
+  // Tests: the stress-path watchdog's verdict (systems/path_watch.hpp): why it failed ("" while on
+  // its path) and the largest errors it saw (NaN: not judged).
+  std::string reason;
+  double path_error = std::numeric_limits<double>::quiet_NaN();
+  double b_error = std::numeric_limits<double>::quiet_NaN();
+  double rotation = std::numeric_limits<double>::quiet_NaN();
+  bool left_path() const { return !reason.empty(); }
 };
 
 class Runner {
@@ -729,7 +753,15 @@ Summary Runner::test_summary(const TestSpec& test, const State& state, Checkpoin
   summary.e0 = sample_extra.doubles["e0"].at(0);
   summary.z0 = sample_extra.doubles["Z"].at(0);
   const bool complete = extra.integers.count("complete") && extra.integers["complete"].at(0) == 1;
-  summary.status = complete ? "done (earlier run)" : "interrupted";
+  summary.reason = extra.strings.count("path_failure") ? extra.strings["path_failure"] : "";
+  summary.status = !complete ? "interrupted" : summary.left_path() ? "failed" : "done (earlier run)";
+  if (extra.doubles.count("path_watch")) {
+    PathWatch watch = make_path_watch(plan_, test);
+    watch.restore(extra.doubles["path_watch"]);
+    summary.path_error = watch.worst_path();
+    summary.b_error = watch.worst_b();
+    summary.rotation = watch.worst_rotation();
+  }
   History history;
   history.load(extra);
   summary.steps = state.clock.step;
@@ -777,7 +809,8 @@ class ShearRun {
         ckpt_(plan.out / (test.name + ".checkpoint.h5")),
         path_(plan.out / (test.name + ".h5")),
         max_strain_(plan.options.max_axial_strain > 0.0 ? plan.options.max_axial_strain : h_.max_axial_strain),
-        watch_(test.name, log) {}
+        watch_(test.name, log),
+        path_watch_(make_path_watch(plan, test)) {}
 
   /// Opens the test (its state and results file, from the sample or the checkpoint) and the world
   /// that steps it; a new test gets its first row and snapshot. Returns false when the checkpoint
@@ -819,6 +852,7 @@ class ShearRun {
   Timer timer_;
   History history_;
   AccuracyWatch watch_;
+  PathWatch path_watch_;
   std::optional<ResultsFile> results_;
   bool resumed_ = false;
   std::optional<World> world_;
@@ -868,6 +902,7 @@ bool ShearRun::open(const Runner& runner, const fs::path& sample) {
 void ShearRun::resume(const State& state, CheckpointExtra& extra) {
   history_.load(extra);
   watch_.restore(extra.doubles["watch_worst"]);
+  if (extra.doubles.count("path_watch")) path_watch_.restore(extra.doubles["path_watch"]);
   results_.emplace(ResultsFile::reopen(path_, state.clock.step));
   resumed_ = true;
   log_.line(test_.name + ": resumed at step " + std::to_string(state.clock.step));
@@ -900,6 +935,12 @@ void ShearRun::row() {
   check_finite(world_->state(), m_);
   append_row(*results_, world_->state(), m_, timer_.elapsed());
   if (world_->state().clock.step > 0) watch_.check(m_, world_->state().clock.step);
+  const std::uint64_t step = world_->state().clock.step;
+  if (const auto failure = path_watch_.add({step, m_.strain[0], m_.stress, m_.max_overlap_ratio, m_.unbalanced})) {
+    summary_.reason = failure->message;
+    log_.line(test_.name + ": failed: " + failure->message +
+              (plan_.config.watch.stop ? "; stopped" : "; runs on (watch.stop = false)"));
+  }
   history_.eps1.push_back(m_.strain[0]);
   history_.p.push_back(m_.inv.p);
   history_.q.push_back(m_.inv.q);
@@ -911,6 +952,8 @@ void ShearRun::row() {
 CheckpointExtra ShearRun::extras() const {
   CheckpointExtra x = history_.save();
   x.doubles["watch_worst"] = watch_.worst_values();
+  x.doubles["path_watch"] = path_watch_.save();
+  if (summary_.left_path()) x.strings["path_failure"] = summary_.reason;
   return x;
 }
 
@@ -941,7 +984,7 @@ void ShearRun::run() {
       if (h_.stop_at_critical) check_critical(eps1);
     }
     if (o_.snapshot_interval > 0 && s % o_.snapshot_interval == 0) results_->write_snapshot(st);
-    if (done || summary_.critical) break;
+    if (done || summary_.critical || (summary_.left_path() && plan_.config.watch.stop)) break;
     checkpoint_or_stop(s);
     if (progress_due()) report_progress(s, eps1);
   }
@@ -994,6 +1037,12 @@ void ShearRun::report_progress(std::uint64_t s, double eps1) {
 void ShearRun::finish() {
   State& st = world_->state();
   if (o_.snapshot_interval == 0 || st.clock.step % o_.snapshot_interval != 0) results_->write_snapshot(st);
+  // The verdict in the file itself: analyze leaves a failed test out of every fit.
+  results_->set_attribute("/", "status", summary_.left_path() ? "failed" : "done");
+  results_->set_attribute("/", "status_reason", summary_.reason);
+  results_->set_attribute("/", "path_error", path_watch_.worst_path());
+  results_->set_attribute("/", "b_error", path_watch_.worst_b());
+  results_->set_attribute("/", "rotation_deg", path_watch_.worst_rotation());
   results_->close();
   CheckpointExtra extra = extras();
   extra.integers["complete"] = {1};
@@ -1008,12 +1057,18 @@ void ShearRun::finish() {
   summary_.final_strain = m_.strain[0];
   summary_.steps = st.clock.step;
   summary_.wall = timer_.elapsed();
-  summary_.status = summary_.critical ? "done (critical state)" : "done";
-  log_.line(test_.name + ": done at step " + std::to_string(st.clock.step) +
+  summary_.path_error = path_watch_.worst_path();
+  summary_.b_error = path_watch_.worst_b();
+  summary_.rotation = path_watch_.worst_rotation();
+  summary_.status = summary_.left_path() ? "failed" : summary_.critical ? "done (critical state)" : "done";
+  log_.line(test_.name + (summary_.left_path() ? ": failed (left its stress path) at step " : ": done at step ") +
+            std::to_string(st.clock.step) +
             ", eps1 = " + num(100 * m_.strain[0], "%.2f") + " %: peak q/p = " + num(summary_.peak_eta, "%.4f") +
             " at eps1 = " + num(100 * summary_.peak_strain, "%.2f") + " %, final q/p = " + num(m_.inv.eta, "%.4f") +
             ", p = " + num(m_.inv.p / 1e6, "%.4f") + " MPa, b = " + num(m_.inv.b, "%.3f") +
-            ", e = " + num(m_.void_ratio, "%.4f") + ", wall " + num(summary_.wall, "%.1f") + " s; " + watch_.worst());
+            ", e = " + num(m_.void_ratio, "%.4f") + ", wall " + num(summary_.wall, "%.1f") + " s; " + watch_.worst() +
+            "; path error " + num(100.0 * path_watch_.worst_path(), "%.2f") + " %, b error " +
+            num(path_watch_.worst_b(), "%.3f") + ", rotation " + num(path_watch_.worst_rotation(), "%.1f") + " deg");
 }
 
 void ShearRun::plot() const {
@@ -1306,16 +1361,26 @@ void write_replacing(const Plan& plan, const std::string& name, Write write) {
   fs::rename(tmp, path);
 }
 
+// A CSV field: quoted (quotes doubled) when it holds a comma, a quote or a line break.
+std::string csv_field(const std::string& v) {
+  if (v.find_first_of(",\"\n") == std::string::npos) return v;
+  std::string out = "\"";
+  for (char c : v) out += c == '"' ? std::string("\"\"") : std::string(1, c);
+  return out + "\"";
+}
+
 void write_index(const Plan& plan, const std::vector<Summary>& prep, const std::vector<Summary>& tests) {
   write_replacing(plan, "index.csv", [&](std::ostream& out) {
-    out << "test,path,b,p0_Pa,file,status,e0,Z0,peak_eta,eps1_at_peak,final_eta,final_p_Pa,final_e,final_eps1,steps,wall_s\n";
+    out << "test,path,b,p0_Pa,file,status,e0,Z0,peak_eta,eps1_at_peak,final_eta,final_p_Pa,final_e,final_eps1,steps,wall_s,"
+           "path_error,b_error,rotation_deg,reason\n";
     for (std::size_t k = 0; k < tests.size(); ++k) {
       const TestSpec& t = plan.config.tests[k];
       const Summary& s = tests[k];
       out << t.name << ',' << path_name(t.path) << ',' << num(t.b) << ',' << num(t.p0) << ',' << t.name << ".h5,"
           << s.status << ',' << num(s.e0) << ',' << num(s.z0) << ',' << num(s.peak_eta) << ',' << num(s.peak_strain)
           << ',' << num(s.final_eta) << ',' << num(s.final_p) << ',' << num(s.final_e) << ',' << num(s.final_strain)
-          << ',' << s.steps << ',' << num(s.wall) << '\n';
+          << ',' << s.steps << ',' << num(s.wall) << ',' << num(s.path_error) << ',' << num(s.b_error) << ','
+          << num(s.rotation) << ',' << csv_field(s.reason) << '\n';
     }
   });
   // One row per sample: the preparation's end state, which every test on it starts from.
@@ -1450,6 +1515,10 @@ void Campaign::shear_test(std::size_t k) {
       return;
     }
     runner_.shear(t, tests_[k]);
+    if (tests_[k].left_path()) {  // a test that left its stress path is a failed test (its line is logged)
+      std::lock_guard lock(failure_mutex_);
+      ++failures_;
+    }
   } catch (const std::exception& e) {
     tests_[k].status = dynamic_cast<const Interrupted*>(&e) ? "interrupted" : "failed";
     failed(t.name, e);

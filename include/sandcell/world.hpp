@@ -8,3 +8,5 @@
 #include "engine/state.hpp"
 #include "engine/world.hpp"
 #include "systems/catalogue.hpp"
+#include "systems/path_watch.hpp"
+#include "systems/servo.hpp"

@@ -55,19 +55,32 @@ s = model.servo
 s.enabled, s.path, s.control, s.strain_rate = True, "constant_p_b", ["strain", "stress", "stress"], [rate, 0, 0]
 s.p = s.sigma3 = p0
 s.b, s.max_rate, s.interval = b, H.get("max_rate", 0.0) or 10 * rate, H.get("servo_interval", 1)
+s.max_rate_ratio = 0.0 if H.get("max_rate", 0.0) else 10.0  # the cap follows the axial rate, as the app's
 s.gain, s.integral_time = sc.derived_gain(0.1, p0, mat, t_s), 1000 * t_s
 sample.reset_clock()
 sample.servo_integral, sample.cell_rate = [0, 0, 0], [-rate, 0, 0]
 world = sc.World(model, sample, threads=2, initial_forces=False)
 name, eps_max = "p-b%.2f-%s" % (b, tag), H.get("max_axial_strain", 0.2)
 attributes = {"job": name, "stage": "shear", "path": "constant_p", "b": "%.6g" % b, "p0": "%.6g" % p0}
+tolerance = sc.PathTolerance()  # the app's [watch] defaults; the checks begin after the ramp
+tolerance.start = H.get("ramp_strain", 0.0)
+watch = sc.PathWatch(s, tolerance)
+
+
+def watched(m):
+    return watch.add(m.strain[0], m.stress, world.step_count, m.max_overlap_ratio, m.unbalanced)
+
+
 with sc.ResultsFile.create(f"{out}/{name}.h5", open(sys.argv[1]).read(), attributes) as results:
-    sc.append_row(results, world, world.measure(d50=d50, density=mat.density))
+    sc.append_row(results, world, m := world.measure(d50=d50, density=mat.density))
+    watched(m)
     results.write_snapshot(world)
     done = False
     while not done:
         world.step_until(10**12, every=series, max_strain=eps_max)
         done = -math.log(world.cell["length"][0] / world.cell["length0"][0]) >= eps_max
         sc.append_row(results, world, m := world.measure(d50=d50, density=mat.density))
+        done = bool(watched(m)) or done  # a test that leaves its path stops, failed
     results.write_snapshot(world)
-print(f"{name}: {world.step_count} steps, eps1 = {m.strain[0]:.4f}, q/p = {m.eta:.4f}, p = {m.p:.0f} Pa")
+verdict = f"failed: {watch.message}" if watch.failed else "on its path"
+print(f"{name}: {world.step_count} steps, eps1 = {m.strain[0]:.4f}, q/p = {m.eta:.4f}, p = {m.p:.0f} Pa, {verdict}")

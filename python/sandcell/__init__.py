@@ -8,9 +8,9 @@ import math
 
 from ._sandcell import (  # noqa: F401
     ContactSettings, CyclicPath, CyclicSettings, Material, Measures, Model, PathFunction, PathInput,
-    PathTargets, ResultsFile, ServoSettings, SimulationError, State, StressInvariants, World,
-    __version__, median_diameter, rayleigh_time, read_checkpoint, sample_diameters, undrained_path,
-    write_checkpoint,
+    PathTargets, PathTolerance, PathWatch, ResultsFile, ServoSettings, SimulationError, State,
+    StressInvariants, World, __version__, median_diameter, principal_rotation_deg, rayleigh_time,
+    read_checkpoint, sample_diameters, shear_ratio, undrained_path, write_checkpoint,
 )
 
 
@@ -53,4 +53,7 @@ def append_row(results, state, m, wall=0.0):
     results.append("inertial_number", m.inertial_number, "- ((eps_dot_1 - eps_dot_3) d50 sqrt(rho/p))")
     results.append("inertial_number_axial", m.inertial_number_axial,
                    "- (eps_dot_1 d50 sqrt(rho/p): what shear.inertial_number sets)")
+    results.append("rotation", principal_rotation_deg(s),
+                   "degrees (the principal axes' turn off the cell axes, 1/2 asin(2 |tau| / (s1 - s3)))")
+    results.append("shear_ratio", shear_ratio(s), "- (largest |shear stress| / p)")
     results.append("wall_time", wall, "s")

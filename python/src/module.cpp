@@ -6,6 +6,7 @@
 #include <sandcell/sandcell.hpp>
 
 #include "systems/homogenizer.hpp"
+#include "systems/path_watch.hpp"
 #include "systems/servo.hpp"
 
 #include <pybind11/eigen.h>
@@ -478,6 +479,53 @@ PYBIND11_MODULE(_sandcell, m) {
             if (s.custom) s.path = StressPath::custom;
           })
       .def("validate", [](const ServoSettings& s) { validate(s); });
+
+  py::class_<PathTolerance>(m, "PathTolerance",
+                            "Tolerances of the stress-path watchdog (systems/path_watch.hpp, docs/physics.md 6.2)")
+      .def(py::init<>())
+      .def_readwrite("stress", &PathTolerance::stress)
+      .def_readwrite("b", &PathTolerance::b)
+      .def_readwrite("rotation", &PathTolerance::rotation)
+      .def_readwrite("shear", &PathTolerance::shear)
+      .def_readwrite("window", &PathTolerance::window)
+      .def_readwrite("start", &PathTolerance::start)
+      .def_readwrite("overlap", &PathTolerance::overlap)
+      .def_readwrite("unbalanced", &PathTolerance::unbalanced)
+      .def("validate", [](const PathTolerance& t) { validate(t); });
+
+  py::class_<PathWatch>(m, "PathWatch",
+                        "The stress-path watchdog: add() one row at a time (after each World.step of a series "
+                        "interval); returns the first failure as a dict, else None (systems/path_watch.hpp)")
+      .def(py::init<const ServoSettings&, PathTolerance>(), py::arg("servo"), py::arg("tolerance") = PathTolerance{})
+      .def(
+          "add",
+          [](PathWatch& w, double eps1, const Mat3& stress, std::uint64_t step, double max_overlap_ratio,
+             double unbalanced) -> py::object {
+            const auto f = w.add({step, eps1, stress, max_overlap_ratio, unbalanced});
+            if (!f) return py::none();
+            py::dict d;
+            d["quantity"] = f->quantity;
+            d["value"] = f->value;
+            d["tolerance"] = f->tolerance;
+            d["step"] = f->step;
+            d["eps1"] = f->eps1;
+            d["message"] = f->message;
+            return d;
+          },
+          py::arg("eps1"), py::arg("stress"), py::arg("step") = 0, py::arg("max_overlap_ratio") = 0.0,
+          py::arg("unbalanced") = 0.0,
+          "eps1: axial strain; stress: 3x3, Pa, compression positive (Measures.stress); returns the failure "
+          "(quantity, value, tolerance, step, eps1, message) on the first row beyond a tolerance, else None")
+      .def_property_readonly("failed", [](const PathWatch& w) { return w.failure().has_value(); })
+      .def_property_readonly("message",
+                             [](const PathWatch& w) { return w.failure() ? w.failure()->message : std::string(); })
+      .def("worst", &PathWatch::worst, py::arg("quantity"),
+           "largest error so far of p, sigma3, path (the largest of the stress targets), b, rotation, shear, "
+           "unbalanced or overlap")
+      .def_property_readonly("rows_checked", &PathWatch::rows_checked);
+  m.def("principal_rotation_deg", &principal_rotation_deg, py::arg("stress"),
+        "The principal axes' turn off the cell axes, 1/2 asin(2 |tau| / (s1 - s3)), degrees");
+  m.def("shear_ratio", &shear_ratio, py::arg("stress"), "Largest |shear stress| / p of a 3x3 stress");
 
   py::class_<Model>(m, "Model", "Everything constant during a run (engine/model.hpp)")
       .def(py::init([](double dt, std::vector<Material> materials, std::optional<ContactSettings> contact,

@@ -263,3 +263,47 @@ TEST_CASE("servo closed loop: the integral term removes the lag of the P law") {
   CHECK(std::abs(pi_law.mean_p) < 0.2 * std::abs(p_law.mean_p));
   CHECK(pi_law.p < 0.02);
 }
+
+TEST_CASE("servo: the cap follows the axial rate (max_rate_ratio), the integral time the axial strain (integral_strain)") {
+  // Constant sigma3, b = 1, at a set inertial number: the axial rate is I sqrt(p/rho)/d50 from the
+  // measured p; sigma3 measured 40 % high asks axis 3 for g x 0.4 = 400 /s of extension.
+  ServoSettings s;
+  s.enabled = true;
+  s.path = StressPath::constant_sigma3_b;
+  s.control = {AxisControl::strain, AxisControl::stress, AxisControl::stress};
+  s.sigma3 = 1e6;
+  s.b = 1.0;
+  s.gain = 1000.0;
+  s.strain_rate = Vec3(1.0, 0.0, 0.0);
+  s.inertial_number = 1e-3;
+  s.d50 = 1e-3;
+  s.density = 2500.0;
+  s.max_rate = 10.0;
+  const Vec3 sigma(9e6, 9e6, 1.4e6);  // p = 6.47 MPa
+  const double axial = 1e-3 * std::sqrt(sigma.mean() / 2500.0) / 1e-3;  // 50.9 /s
+  CHECK(servo_strain_rates(s, sigma)[0] == doctest::Approx(axial).epsilon(1e-14));
+  CHECK(servo_strain_rates(s, sigma)[2] == -10.0);  // the fixed cap: the axis of sigma3 falls behind
+  s.max_rate_ratio = 5.0;
+  CHECK(servo_strain_rates(s, sigma)[2] == doctest::Approx(-5.0 * axial).epsilon(1e-14));  // 5 x the axial rate
+  s.max_rate = 1000.0;
+  CHECK(servo_strain_rates(s, sigma)[2] == doctest::Approx(-400.0).epsilon(1e-14));  // inside max(cap, 5 x): g x err
+  // The integral term: one update of err over `interval` s adds g err interval / T_i. T_i = 1 s,
+  // bounded by integral_strain / axial rate = 1e-3 / 50.9 s.
+  s.integral_time = 1.0;
+  s.integral_strain = 1e-3;
+  Vec3 integral = Vec3::Zero();
+  const double interval = 1e-5;
+  const Vec3 r = servo_strain_rates(s, sigma, &integral, interval);
+  const double t_i = 1e-3 / axial;
+  CHECK(integral[2] == doctest::Approx(-0.4 * interval).epsilon(1e-14));
+  CHECK(r[2] == doctest::Approx(1000.0 * (-0.4 - 0.4 * interval / t_i)).epsilon(1e-12));
+  s.integral_strain = 0.0;  // T_i = 1 s as set
+  integral.setZero();
+  CHECK(servo_strain_rates(s, sigma, &integral, interval)[2] ==
+        doctest::Approx(1000.0 * (-0.4 - 0.4 * interval / 1.0)).epsilon(1e-12));
+  s.max_rate_ratio = -1.0;
+  CHECK_THROWS_WITH_AS(validate(s), doctest::Contains("servo.max_rate_ratio = -1"), std::invalid_argument);
+  s.max_rate_ratio = 0.0;
+  s.integral_strain = std::nan("");
+  CHECK_THROWS_WITH_AS(validate(s), doctest::Contains("servo.integral_strain"), std::invalid_argument);
+}
