@@ -32,7 +32,7 @@ struct PathTolerance {
   double stress = 0.02;      // -, relative error of p, sigma3 or a stress-controlled axis
   double b = 0.03;           // -, absolute error of b
   double rotation = 5.0;     // degrees
-  double shear = 0.1;        // -, largest |shear stress| / p
+  double shear = 0.15;       // -, largest |shear stress| / p
   double window = 0.01;      // -, axial strain over which the window means are taken
   double start = 0.0;        // -, axial strain (travel) before which nothing is averaged (the ramp)
   double overlap = 0.2;      // -, largest overlap / radius, row by row

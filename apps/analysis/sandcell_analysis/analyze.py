@@ -90,8 +90,10 @@ from .dilatancy import (dilatancy_g, dilatancy_li3d, dilatancy_series, fit_g_for
                         slope_max_dilation)
 from .fitting import NAN
 from .m_theta import fit_m_theta
+from .path_check import DEFAULTS as PATH_DEFAULTS
+from .path_check import check_file as check_path
 from .reference import CRIT, STUDY
-from .results import PATHS, InputError, b_key, collect_files, read_test, to_float
+from .results import PATHS, InputError, attr, b_key, collect_files, open_results, read_test, to_float
 
 
 def spearman(x, y):
@@ -377,6 +379,28 @@ def write_report(path, tests, res, opt, files, skipped):
     for w in res["warnings"]:
         add(f"> Warning: {w}\n")
 
+    add("## 0. Stress paths\n")
+    add("Every test is judged against its path by the app's watchdog rules (docs/physics.md section "
+        "6.2; `path_check.py` re-applies them to the series, with the tolerances of the file's own "
+        "`[watch]` section): over each trailing window of axial strain "
+        f"(default {100 * PATH_DEFAULTS['window']:g} %) after the ramp, p (constant p) or sigma3 "
+        f"(constant sigma3) within {100 * PATH_DEFAULTS['stress']:g} % of the target, b within "
+        f"{PATH_DEFAULTS['b']:g}, the principal axes within {PATH_DEFAULTS['rotation']:g} deg of the "
+        f"cell axes, the largest shear stress within {PATH_DEFAULTS['shear']:g} p, the unbalanced force "
+        f"ratio below {PATH_DEFAULTS['unbalanced']:g}, and no overlap beyond "
+        f"{PATH_DEFAULTS['overlap']:g} R. A failed or unfinished test is left out of every fit, "
+        "table, trend and figure below.\n")
+    add("| test | status | largest p/sigma3 error (%) | largest b error | largest rotation (deg) "
+        "| largest shear / p | critical | reason |")
+    add("|---|---|---|---|---|---|---|---|")
+    for t in sorted(tests + res.get("excluded", []), key=lambda t: (t["path"], t["p0"], t["b_nominal"])):
+        w = t["path_check"]["worst"]
+        err = max(w["p"], w["sigma3"])
+        add(f"| {t['name']} | {t['status']} | {_f(100 * err, '.2f')} | {_f(w['b'], '.3f')} "
+            f"| {_f(w['rotation'], '.1f')} | {_f(w['shear'], '.3f')} "
+            f"| {'yes' if t['critical']['reached'] else 'no'} | {t['status_reason'] or '-'} |")
+    add("")
+
     add("## 1. Tests\n")
     add("Critical point = means over the last window of eps_1; M = q_c/p_c. "
         "Criticality: the straight-line change over the window of eta and p below "
@@ -548,8 +572,14 @@ def build_summary(tests, res, opt, files, skipped):
     opts = {k: getattr(opt, k) for k in ("window", "pre_strain", "min_points", "tol_eta", "tol_p",
                                          "tol_e", "tol_epsv", "all", "fix_xi", "smooth",
                                          "min_strain", "min_deq", "dilatancy_path", "title")}
+    paths = []
+    for t in tests + res.get("excluded", []):
+        paths.append({"name": t["name"], "file": t["file"], "status": t["status"],
+                      "reason": t["status_reason"], "worst": t["path_check"]["worst"],
+                      "critical": t["critical"]["reached"], "used_in_fits": any(t is u for u in tests) and t["used"]})
     return _jsonable({
         "tool": "sandcell analyze.py", "inputs": [t["file"] for t in tests],
+        "excluded": [t["name"] for t in res.get("excluded", [])], "path_checks": paths,
         "skipped": [{"file": f, "why": w} for f, w in skipped], "options": opts,
         "study": STUDY, "criteria": CRIT, "tests": per_test, "csl": res["csl"],
         "m_theta": res["m_theta"], "psi_source": res["psi_source"],
@@ -631,6 +661,39 @@ def parse_args(argv):
     return opt
 
 
+def path_verdict(path):
+    """The test's standing on its stress path: (status, reason, check) with status "done", "failed"
+    or "unfinished". The app writes its verdict into the file (root attributes status, status_reason);
+    the same rules (path_check.py, the app's [watch] tolerances of the file's config) are applied
+    again here, so that a file written before the watchdog is judged too, and a file whose series
+    disagrees with its verdict is not trusted. A file of the watchdog's time without a status is a
+    test still running or stopped."""
+    import tomllib
+    with open_results(path) as f:
+        status = attr(f, "status")
+        reason = attr(f, "status_reason") or ""
+        text = attr(f, "config") or ""
+        modern = "series" in f and "rotation" in f["series"]
+    tol, start = {}, 0.0
+    try:
+        cfg = tomllib.loads(str(text)) if text else {}
+        tol = {k: float(v) for k, v in cfg.get("watch", {}).items() if k in PATH_DEFAULTS}
+        start = float(cfg.get("shear", {}).get("ramp_strain", 0.0))
+    except (tomllib.TOMLDecodeError, TypeError, ValueError):
+        pass
+    check = check_path(path, start=start, tolerances=tol)
+    fl = check["failure"]
+    if status == "failed":
+        return "failed", str(reason), check
+    if fl is not None:
+        return "failed", (f"left its stress path: {fl['quantity']} {fl['value']:.4g} beyond "
+                          f"{fl['tolerance']:g} at eps1 = {100 * fl['eps1']:.2f} % (path_check.py on the "
+                          "series)"), check
+    if status is None and modern:
+        return "unfinished", "no verdict in the file: the test is running or was stopped", check
+    return "done", "", check
+
+
 def run(opt):
     files = collect_files(opt.results)
     tests, skipped = [], []
@@ -655,10 +718,17 @@ def run(opt):
         elif t["rows"] < 5:
             skipped.append((f, f"only {t['rows']} rows"))
         else:
+            t["status"], t["status_reason"], t["path_check"] = path_verdict(f)
             tests.append(t)
     if not tests:
         raise InputError(f"no shear tests with data in {len(files)} file(s) read "
                          "(files need the root attribute stage = 'shear')")
+    # A test that left its stress path, or has not finished, enters no fit, table, trend or figure.
+    excluded = [t for t in tests if t["status"] != "done"]
+    tests = [t for t in tests if t["status"] == "done"]
+    if not tests:
+        raise InputError(f"no shear test on its stress path among {len(excluded)}: "
+                         + "; ".join(f"{t['name']}: {t['status']} ({t['status_reason']})" for t in excluded))
     tests.sort(key=lambda t: (PATHS.index(t["path"]) if t["path"] in PATHS else 9,
                               t["p0"], t["b_nominal"], t["name"]))
     try:
@@ -666,6 +736,14 @@ def run(opt):
     except OSError as exc:
         raise InputError(f"cannot create the output folder {opt.out}: {exc.strerror}") from None
     res = analyze_tests(tests, opt)
+    res["excluded"] = excluded
+    for t in excluded:  # whether it had reached the critical state, for the table of paths only
+        t["critical"] = detect_critical(
+            t["eps1"], t, window=opt.window, tol_eta=opt.tol_eta, tol_p=opt.tol_p, tol_e=opt.tol_e,
+            tol_epsv=opt.tol_epsv, pre_strain=opt.pre_strain, min_points=opt.min_points)
+    for t in excluded:
+        res["warnings"].append(f"{t['name']} left out of every fit, table, trend and figure: {t['status']}"
+                               + (f": {t['status_reason']}" if t["status_reason"] else ""))
     from . import plots
     plt = plots.pyplot()
     figs = []

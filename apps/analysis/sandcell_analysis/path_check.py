@@ -29,7 +29,7 @@ DEFAULTS = {
     "stress": 0.02,
     "b": 0.03,
     "rotation": 5.0,
-    "shear": 0.1,
+    "shear": 0.15,
     "window": 0.01,
     "overlap": 0.2,
     "unbalanced": 1.0,
