@@ -123,7 +123,7 @@ std::string with(std::string config, const std::string& section, const std::stri
 
 }  // namespace
 
-TEST_CASE("triaxial watch: a test made to leave its path, one per quantity, fails naming it; exit 1") {
+TEST_CASE("triaxial watch: a test made to leave its path, one per quantity, fails naming it, exit 1") {
   struct Case {
     const char* quantity;
     std::string config;
@@ -165,7 +165,7 @@ TEST_CASE("triaxial watch: a test made to leave its path, one per quantity, fail
   }
 }
 
-TEST_CASE("triaxial watch: the other tests of a campaign go on; a failed test resumes as failed") {
+TEST_CASE("triaxial watch: the other tests of a campaign go on, and a failed test resumes as failed") {
   const fs::path dir = fresh("campaign");
   // The constant-p test's axes turn by more than 0.01 deg; the strain path has no stress targets
   // and only its overlap and unbalanced force are judged: it ends done.

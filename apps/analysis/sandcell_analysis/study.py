@@ -195,9 +195,12 @@ def run_variant(name, cfg, args, share_sample_from=None):
     index = os.path.join(out, "index.csv")
     if os.path.exists(index):
         rows = read_index(out)
-        if rows and rows[-1]["status"].startswith("done"):
+        if rows and finished(rows[-1]):
             return rows[-1], out
     os.makedirs(out, exist_ok=True)
+    # Every run goes to its end: one that leaves its stress path is a result of the study (the
+    # setting cannot hold the path), recorded, drawn, and never recommended.
+    cfg.setdefault("watch", {})["stop"] = False
     cfg_path = os.path.join(out, "config.toml")
     with open(cfg_path, "w") as f:
         f.write(toml_dump(cfg))
@@ -215,9 +218,17 @@ def run_variant(name, cfg, args, share_sample_from=None):
     with open(os.path.join(out, "log.txt"), "a") as log:
         rc = subprocess.run(cmd, stdout=log, stderr=subprocess.STDOUT).returncode
     rows = read_index(out)
-    if rc != 0 or not rows or not rows[-1]["status"].startswith("done"):
+    left = rc == 1 and rows and rows[-1]["status"] == "failed" and rows[-1].get("reason")
+    if (rc != 0 and not left) or not rows or not finished(rows[-1]):
         fail(f"{name}: triaxial exited {rc}; see {os.path.join(out, 'log.txt')}", 1)
+    if left:
+        print(f"{PROG}: {name}: {rows[-1]['reason']}", flush=True)
     return rows[-1], out
+
+
+def finished(row):
+    """A run that went to its end: done, or failed for leaving its stress path (watch.stop = false)."""
+    return row["status"].startswith("done") or (row["status"] == "failed" and bool(row.get("reason")))
 
 
 def metrics(row, out, window):
@@ -293,6 +304,7 @@ def size_study(args, preset, base):
             cfg, rate = variant_config(base, preset, ref, N=n, seed=seed)
             row, out = run_variant(name, cfg, args)
             m = metrics(row, out, args.window)
+            m["left_path"] = row.get("reason", "") if row["status"] == "failed" else ""
             prep_steps, prep_wall = preparation(out)
             m.update(name=name, N=n, seed=seed, rate=rate, prep_steps=prep_steps, prep_wall=prep_wall,
                      Z0=float(row["Z0"]))
@@ -466,6 +478,7 @@ def main():
         if name == "ref":
             ref_out = out
         m = metrics(row, out, args.window)
+        m["left_path"] = row.get("reason", "") if row["status"] == "failed" else ""
         setting = dict(ref, **over)
         m.update(name=name, axis=axis, rate=rate, **{f"set_{k}": v for k, v in setting.items()})
         m["N"] = setting["N"]
@@ -494,7 +507,7 @@ def main():
         tol[key] = value
 
     def within(m):
-        return all(not (m[f"err_{k}"] > tol[k]) for k, _ in METRICS)
+        return not m["left_path"] and all(not (m[f"err_{k}"] > tol[k]) for k, _ in METRICS)
 
     per_axis = {}
     for axis in ("dt", "I"):  # the axes that change the cost (e does not)
@@ -506,7 +519,7 @@ def main():
 
     fields = ["name", "axis", "set_dt", "set_I", "set_E", "set_e", "set_N", "set_seed", "rate", "e0", "peak_eta",
               "peak_strain", "res_eta", "res_e", "max_dilation", "I", "max_overlap", "steps", "wall", "psteps_per_s",
-              "cost"] + [f"err_{k}" for k, _ in METRICS]
+              "cost"] + [f"err_{k}" for k, _ in METRICS] + ["left_path"]
     with open(os.path.join(args.out, "study.csv"), "w", newline="") as f:
         w = csv.DictWriter(f, fieldnames=fields, extrasaction="ignore")
         w.writeheader()
@@ -529,7 +542,8 @@ def main():
              "M p-steps/s | err peak | err res q/p | err e | err -d |",
              "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for m in runs:
-        lines.append(f"| {m['name']} | {m['peak_eta']:.4f} | {m['res_eta']:.4f} | {m['res_e']:.4f} | "
+        mark = " (left its path)" if m["left_path"] else ""
+        lines.append(f"| {m['name']}{mark} | {m['peak_eta']:.4f} | {m['res_eta']:.4f} | {m['res_e']:.4f} | "
                      f"{m['max_dilation']:.3f} | "
                      f"{m['I']:.2g} | {m['max_overlap']:.3g} | {m['steps']:.0f} | {m['wall']:.1f} | "
                      f"{m['psteps_per_s'] / 1e6:.2f} | {m['err_peak_eta']:.4f} | {m['err_res_eta']:.4f} | "
