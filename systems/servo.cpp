@@ -62,7 +62,7 @@ double pi_rate(const ServoSettings& servo, double error, double* integral, doubl
 // The cap and the integral time of the stress-controlled axes at one update, from the rates of the
 // strain-controlled axes. The cap: max_rate, or (max_rate_ratio > 0) at least that multiple of the
 // fastest strain-controlled axis. At b = 1 on constant sigma3 the axis of sigma3 extends at twice
-// the axial rate plus the dilation (measured up to 4x at the peak of a dense sample); at a set
+// the axial rate plus the dilation (measured up to 6x at the peak of a dense sample); at a set
 // inertial number the axial rate grows with sqrt(p), so a cap fixed at p0 let the axis of sigma3
 // fall behind, sigma3 and p rise, the axial rate rise with them: a runaway to 2,000 p0.
 // The integral time: integral_time, or (integral_strain > 0) at most the time the fastest axis

@@ -82,5 +82,11 @@ with sc.ResultsFile.create(f"{out}/{name}.h5", open(sys.argv[1]).read(), attribu
         sc.append_row(results, world, m := world.measure(d50=d50, density=mat.density))
         done = bool(watched(m)) or done  # a test that leaves its path stops, failed
     results.write_snapshot(world)
+    # the verdict in the file, as the app writes it
+    results.set_attribute("/", "status", "failed" if watch.failed else "done")
+    results.set_attribute("/", "status_reason", watch.message)
+    results.set_attribute("/", "path_error", watch.worst("path"))
+    results.set_attribute("/", "b_error", watch.worst("b"))
+    results.set_attribute("/", "rotation_deg", watch.worst("rotation"))
 verdict = f"failed: {watch.message}" if watch.failed else "on its path"
 print(f"{name}: {world.step_count} steps, eps1 = {m.strain[0]:.4f}, q/p = {m.eta:.4f}, p = {m.p:.0f} Pa, {verdict}")

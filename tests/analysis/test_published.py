@@ -6,7 +6,7 @@ rotation_deg, reason): every `done` test must be within the watchdog's default t
 not, and the committed summary.json must have fitted no test that is not done. A campaign
 published before the watchdog cannot be judged from what is committed (its results files are not):
 its README must say so, and none of its tests may stay `done` with the run-away's signature (a
-final p above 10 p0: at the critical state p stays within 4 p0 on every path of the study).
+final p above 10 p0: on every path of the study p stays within 5 p0; the run-away reached 700-4,000 p0).
 """
 import csv
 import glob
