@@ -30,7 +30,9 @@ def main():
     with open(os.path.join(a.run, "index.csv")) as fh:
         index = list(csv.DictReader(fh))
     with open(os.path.join(a.analysis, "summary.json")) as fh:
-        tests = {t["name"]: t for t in json.load(fh)["tests"]}
+        summary = json.load(fh)
+    tests = {t["name"]: t for t in summary["tests"]}
+    paths = {t["name"]: t for t in summary.get("path_checks", [])}  # every test, fitted or left out
     rows = []
     for r in index:
         name = r["test"]
@@ -45,20 +47,25 @@ def main():
             banded = share > localization.BAND_CONTRAST * shuffled
             band = "yes" if banded else "no"
             mode = f"({whole['mode_h']},{whole['mode_k']},{whole['mode_l']})"
+        critical = t.get("critical") if t else paths.get(name, {}).get("critical")
         rows.append(dict(test=name, status=r["status"], final_eps1=float(r["final_eps1"]), steps=int(r["steps"]),
-                         wall_s=float(r["wall_s"]), critical="yes" if t.get("critical") else "no",
+                         wall_s=float(r["wall_s"]), critical="yes" if critical else "no",
+                         path_error=float(r.get("path_error", "nan")), rotation=float(r.get("rotation_deg", "nan")),
                          p_c=cp.get("p", float("nan")), M=cp.get("eta", float("nan")), e_c=cp.get("e", float("nan")),
                          banded=band, mode=mode, mode_share=share))
-    lines = ["| test | status | final eps1 | steps | wall s | critical (analyze) | p_c MPa | q/p | e_c | banded | mode (share) |",
-             "|---|---|---|---|---|---|---|---|---|---|---|"]
+    lines = ["| test | status | path error % | rotation deg | final eps1 | steps | wall s | critical (analyze) | p_c MPa "
+             "| q/p | e_c | banded | mode (share) |",
+             "|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for r in rows:
-        lines.append(f"| {r['test']} | {r['status']} | {r['final_eps1']:.3f} | {r['steps']} | {r['wall_s']:.0f} | {r['critical']} | "
+        lines.append(f"| {r['test']} | {r['status']} | {100 * r['path_error']:.2f} | {r['rotation']:.1f} "
+                     f"| {r['final_eps1']:.3f} | {r['steps']} | {r['wall_s']:.0f} | {r['critical']} | "
                      f"{r['p_c'] / 1e6:.3f} | {r['M']:.3f} | {r['e_c']:.4f} | {r['banded']} | {r['mode']} ({r['mode_share']:.2f}) |")
     n_crit = sum(r["critical"] == "yes" for r in rows)
     n_band = sum(r["banded"] == "yes" for r in rows)
     n_both = sum(r["critical"] == "yes" and r["banded"] == "yes" for r in rows)
-    lines += ["", f"{len(rows)} tests: {n_crit} critical by `triaxial analyze`, {n_band} banded, "
-              f"{n_both} of the critical points from a banded sample."]
+    n_failed = sum(r["status"] == "failed" for r in rows)
+    lines += ["", f"{len(rows)} tests: {n_failed} failed (left their stress path: not fitted), {n_crit} critical by "
+              f"`triaxial analyze`, {n_band} banded, {n_both} of the critical points from a banded sample."]
     text = "\n".join(lines) + "\n"
     if a.out:
         with open(a.out, "w") as fh:
