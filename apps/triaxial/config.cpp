@@ -1,5 +1,6 @@
 #include "config.hpp"
 
+#include "critical.hpp"
 #include "systems/contact_pass.hpp"
 
 #include <toml++/toml.h>
@@ -307,7 +308,11 @@ void parse_sample(const toml::table& root, const std::string& source, SampleConf
 // [material]: the spheres' material (restored for shearing after the preparation's friction).
 void parse_material(const toml::table& root, const std::string& source, Material& m) {
   Section s = section(root, "material", source);
-  s.positive("density", m.density, "kg/m^3");
+  // Solids lie between ~100 kg/m^3 (foams) and 22,600 (osmium); mass scaling of quasi-static DEM
+  // multiplies that by up to ~1e6. Far outside, the time step (~ sqrt(density)) vanishes or the
+  // inertia swamps the test, and a later check would blame another key (1e-300 blamed material.young).
+  s.number("density", m.density, 1.0, 1e10,
+           "must be in [1, 1e10] kg/m^3 (solids 100-22,600; mass scaling up to ~1e6 x)");
   s.positive("young", m.young, "Pa");
   s.number("poisson", m.poisson, -0.999, 0.499, "must be in (-1, 0.5)");
   s.number("restitution", m.restitution, 1e-6, 1.0, "must be in (0, 1]");
@@ -402,6 +407,13 @@ void parse_shear(const toml::table& root, const std::string& source, ShearConfig
   const std::vector<double> rates = s.numbers("strain_rates", "three finite rates in 1/s");
   if (!rates.empty()) {
     if (rates.size() != 3) s.fail("strain_rates", std::to_string(rates.size()) + " values", "expected 3 rates (1/s)");
+    // At 1e6 1/s a cell changes by its own size in a microsecond: no element test is that fast (1e308
+    // collapsed the cell in the first step, blamed on shear.steps). The strain a step is bounded
+    // once dt is known (run.cpp, check_strain_per_step).
+    for (std::size_t k = 0; k < 3; ++k)
+      if (!(std::abs(rates[k]) <= 1e6))
+        s.fail("strain_rates[" + std::to_string(k) + "]", num(rates[k]),
+               "must be in [-1e6, 1e6] 1/s (compression positive)");
     h.strain_rates = Vec3(rates[0], rates[1], rates[2]);
   }
   s.integer("steps", h.steps, 0, UINT64_MAX, "must be an integer >= 0");
@@ -523,6 +535,15 @@ void check_shear_for_tests(const Config& c, const std::string& source) {
       throw ConfigError(source + ": shear.ramp_strain = " + num(c.shear.ramp_strain) +
                         ": the ramp applies to the stress paths' axial rate; path \"strain\" allows 0 only");
   }
+  // Critical state is tested once a test has sheared critical_window + pre_strain (critical.hpp):
+  // with no room for that before max_axial_strain, stop_at_critical could never stop a test.
+  const double pre = CriticalTest{}.pre_strain;
+  if (stress_path && c.shear.stop_at_critical && c.shear.critical_window + pre >= c.shear.max_axial_strain)
+    throw ConfigError(source + ": shear.critical_window = " + num(c.shear.critical_window) +
+                      " with shear.max_axial_strain = " + num(c.shear.max_axial_strain) +
+                      ": shear.stop_at_critical tests critical state only after critical_window + " + num(pre) +
+                      " of axial strain; allowed: critical_window < max_axial_strain - " + num(pre) +
+                      ", or stop_at_critical = false");
   if (c.shear.ramp_strain >= c.shear.max_axial_strain)
     throw ConfigError(source + ": shear.ramp_strain = " + num(c.shear.ramp_strain) +
                       ": must be below shear.max_axial_strain = " + num(c.shear.max_axial_strain));

@@ -1194,6 +1194,32 @@ void check_run_lengths(const Plan& plan, double max_strain) {
   }
 }
 
+// At most 1e-3 of strain a step (the bound of a servo update, check_run_lengths): faster, the cell
+// outruns the contacts within a step. Checked before the cell width, which a too fast strain path
+// also breaks (1e308 1/s was blamed on shear.steps). Throws ConfigError naming the rate's key.
+void check_strain_per_step(const Plan& plan) {
+  constexpr double k_max_strain_per_step = 1e-3;
+  const Config& config = plan.config;
+  const double dt = plan.base.dt;
+  const std::string allowed = ": allowed: at most " + num(k_max_strain_per_step) +
+                              " of strain a step (at dt = " + num(dt) + " s: a rate up to " +
+                              num(k_max_strain_per_step / dt, "%.3g") + " 1/s)";
+  for (const TestSpec& t : config.tests) {
+    if (t.path == ShearPath::strain) {
+      for (int a = 0; a < 3; ++a)
+        if (std::abs(config.shear.strain_rates[a]) * dt > k_max_strain_per_step)
+          throw ConfigError(config.source + ": shear.strain_rates[" + std::to_string(a) +
+                            "] = " + num(config.shear.strain_rates[a]) + " 1/s" + allowed);
+    } else if (const double rate = axial_rate(plan, t.p0); rate * dt > k_max_strain_per_step) {
+      const std::string key = config.shear.inertial_number > 0.0
+                                  ? "shear.inertial_number = " + num(config.shear.inertial_number) + " (" + num(rate) +
+                                        " 1/s at p0 = " + num(t.p0) + " Pa)"
+                                  : "shear.strain_rate = " + num(rate) + " 1/s";
+      throw ConfigError(config.source + ": " + key + allowed);
+    }
+  }
+}
+
 Plan make_plan(Config config_in, const Options& options) {
   Plan plan;
   plan.options = options;
@@ -1209,6 +1235,7 @@ Plan make_plan(Config config_in, const Options& options) {
   }
   derive_model(plan);
   const double max_strain = options.max_axial_strain > 0.0 ? options.max_axial_strain : config.shear.max_axial_strain;
+  check_strain_per_step(plan);
   check_cell_width(plan, diameters, max_strain);
   for (const TestSpec& t : config.tests)
     if (std::find(plan.p0.begin(), plan.p0.end(), t.p0) == plan.p0.end()) plan.p0.push_back(t.p0);

@@ -129,6 +129,9 @@ TEST_CASE("triaxial: each class of bad input exits 2 naming the key, and clobber
     c.insert(c.find(head) + head.size(), line + "\n");
     return c;
   };
+  const auto replaced = [](std::string c, const std::string& from, const std::string& to) {
+    return c.replace(c.find(from), from.size(), to);
+  };
   const Case cases[] = {
       {"syntax", base + "[output\n", "TOML syntax error"},
       {"unknown key", with("material", "yuong = 1e9"), "material.yuong"},
@@ -179,6 +182,20 @@ TEST_CASE("triaxial: each class of bad input exits 2 naming the key, and clobber
       {"neither an axial rate nor an inertial number",
        std::string(base).replace(base.find("strain_rate = 2.0"), 17, ""),
        "shear.strain_rate and shear.inertial_number: neither is given"},
+      // Found by the reliability audit (issue 42): each was accepted, or blamed another key.
+      // stop_at_critical tests critical state only after window + 0.05 of strain (critical.hpp).
+      {"a critical window with no room before the end", with("shear", "stop_at_critical = true"),
+       "shear.critical_window = 0.05 with shear.max_axial_strain = 0.03: shear.stop_at_critical"},
+      {"a density that makes dt vanish", with("material", "density = 1e-300"),
+       "material.density = 1e-300: must be in [1, 1e10] kg/m^3"},
+      {"a strain path rate of 1e308",
+       replaced(replaced(base, "strain_rate = 2.0", "strain_rates = [1e308, 0, 0]\nsteps = 100"),
+                "path = \"constant_p\"", "path = \"strain\""),
+       "shear.strain_rates[0] = 1e+308: must be in [-1e6, 1e6] 1/s"},
+      // 1e-3 of strain a step at most (the servo update's bound); dt = 4.46e-6 s here.
+      {"an axial rate beyond 1e-3 of strain a step",
+       std::string(base).replace(base.find("strain_rate = 2.0"), 17, "strain_rate = 1e308"),
+       "shear.strain_rate = 1e+308 1/s: allowed: at most 0.001 of strain a step"},
   };
   for (const Case& c : cases) {
     const std::string what = c.what;
