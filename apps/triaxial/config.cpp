@@ -512,6 +512,8 @@ void parse_output(const toml::table& root, const std::string& source, OutputConf
   s.number("checkpoint_minutes", o.checkpoint_minutes, 0.0, 1e6, "must be >= 0 minutes (0: by steps only)");
   s.integer("flush_interval", o.flush_interval, 1, 1'000'000, "must be an integer >= 1 row");
   s.boolean("plot", o.plot);
+  s.number("max_size_gib", o.max_size_gib, 1e-6, 1e6,
+           "must be in (0, 1e6] GiB (the largest estimated size of the run's results files)");
   s.check_unknown();
 }
 

@@ -71,6 +71,7 @@ struct OutputConfig {
   double checkpoint_minutes = 10.0;       // wall minutes between checkpoints (0: by steps only)
   std::uint64_t flush_interval = 10;      // series rows between flushes of the results file
   bool plot = true;                       // PNG of q and eps_v vs eps_1 per test (python3 + matplotlib)
+  double max_size_gib = 64.0;             // GiB, largest estimated size of the run's results files (refused above)
 };
 
 struct Config {

@@ -145,6 +145,8 @@ struct Plan {
   int job_threads = 1;      // threads of one test (the budget split between `parallel` tests)
   int prepare_threads = 1;  // threads of one preparation (all of them when chained ones run one by one)
   Partition partition = Partition::adaptive;  // --thread-partition
+  double output_bytes = 0.0;                  // estimated size of the run's results files (estimate_output)
+  std::string output_note;                    // the estimate, for the warning above 1 GiB ("" below)
 };
 
 std::string p0_tag(double p0) { return "p0_" + num(p0 / 1e3, "%g") + "kPa"; }
@@ -1220,6 +1222,61 @@ void check_strain_per_step(const Plan& plan) {
   }
 }
 
+// The size of the results files, estimated before anything runs (measured: 300 and 1,200 spheres,
+// a snapshot every 10 steps, within 5 % above): a snapshot is 14 doubles a sphere
+// (ResultsFile::write_snapshot) and ~4 KiB of HDF5 headers (2.2 KiB) and XDMF entry (1.6 KiB); a
+// series row 44 doubles; a file ~1 MiB of first chunks (32 KiB for each of ~27 datasets). A test
+// runs to max_axial_strain (+ ramp_strain for the ramp) at its rate at p0 (shear.steps on path
+// "strain"), an upper bound with stop_at_critical; a preparation at least the shrink of its cloud
+// at prepare.max_rate. Above output.max_size_gib the run is refused naming the interval that
+// costs most; above 1 GiB it is warned about at the start. Throws ConfigError.
+void estimate_output(Plan& plan, std::size_t spheres, double max_strain) {
+  constexpr double k_snapshot_sphere = 14 * 8, k_snapshot_header = 4096, k_row = 44 * 8, k_file = 1 << 20;
+  constexpr double k_warn = double(1 << 30);  // 1 GiB
+  const Config& config = plan.config;
+  const OutputConfig& o = config.output;
+  double snapshot_bytes = 0.0, row_bytes = 0.0, longest = 0.0;  // longest: steps of the longest test
+  for (const TestSpec& t : config.tests) {
+    const double steps = t.path == ShearPath::strain
+                             ? double(config.shear.steps)
+                             : (max_strain + config.shear.ramp_strain) / (axial_rate(plan, t.p0) * plan.base.dt);
+    longest = std::max(longest, steps);
+    const double snapshots = 2.0 + (o.snapshot_interval > 0 ? std::floor(steps / double(o.snapshot_interval)) : 0.0);
+    snapshot_bytes += snapshots * (k_snapshot_sphere * double(spheres) + k_snapshot_header);
+    row_bytes += k_file + (2.0 + std::floor(steps / double(o.series_interval))) * k_row;
+  }
+  const double phi0 = plan.from_file ? 0.3 : config.sample.generation.solid_fraction;
+  for (double p0 : plan.p0) {
+    const double steps =
+        plan.chained_from(p0) > 0.0 ? 0.0 : std::log(0.64 / phi0) / 3.0 / (config.prepare.max_rate * plan.prepare_dt);
+    snapshot_bytes += k_snapshot_sphere * double(spheres) + k_snapshot_header;
+    row_bytes += k_file + (1.0 + std::floor(steps / double(o.series_interval))) * k_row;
+  }
+  plan.output_bytes = snapshot_bytes + row_bytes;
+  const bool snapshots = snapshot_bytes >= row_bytes;
+  const std::string key = snapshots ? "output.snapshot_interval = " + std::to_string(o.snapshot_interval)
+                                    : "output.series_interval = " + std::to_string(o.series_interval);
+  const std::string gib = num(plan.output_bytes / k_warn, "%.3g") + " GiB";
+  const std::string what = std::to_string(config.tests.size()) + " test(s) x " + num(longest, "%.3g") + " steps x " +
+                           std::to_string(spheres) + " spheres";
+  if (plan.output_bytes > o.max_size_gib * k_warn) {
+    // The interval that gives ~100 snapshots (~1000 rows) a test, when that is a larger one.
+    const double interval = std::ceil(longest / (snapshots ? 100.0 : 1000.0));
+    const double now = double(snapshots ? o.snapshot_interval : o.series_interval);
+    if ((snapshots && o.snapshot_interval == 0) || interval <= now)  // no interval to blame: the limit
+      throw ConfigError(config.source + ": output.max_size_gib = " + num(o.max_size_gib) + ": below the ~" + gib +
+                        " of results the output intervals as set write (estimated: " + what +
+                        "); allowed: a larger output.max_size_gib");
+    throw ConfigError(config.source + ": " + key + ": ~" + gib + " of results (estimated: " + what +
+                      "); allowed: <= output.max_size_gib = " + num(o.max_size_gib) + " GiB: raise the interval to " +
+                      num(interval, "%.0f") + " (~" + (snapshots ? "100 snapshots" : "1000 rows") +
+                      " a test) or the limit");
+  }
+  if (plan.output_bytes > k_warn)
+    plan.output_note = "~" + gib + " of results (estimated: " + what + ", " + key +
+                       "), above 1 GiB; refused above output.max_size_gib = " + num(o.max_size_gib) + " GiB";
+}
+
 Plan make_plan(Config config_in, const Options& options) {
   Plan plan;
   plan.options = options;
@@ -1241,6 +1298,7 @@ Plan make_plan(Config config_in, const Options& options) {
     if (std::find(plan.p0.begin(), plan.p0.end(), t.p0) == plan.p0.end()) plan.p0.push_back(t.p0);
   if (config.prepare.chain) std::sort(plan.p0.begin(), plan.p0.end());
   check_run_lengths(plan, max_strain);
+  estimate_output(plan, diameters.size(), max_strain);
   // Servo settings are checked here, before anything is written.
   try {
     validate(prepare_model(plan, plan.p0.front()).servo);
@@ -1749,6 +1807,7 @@ static void log_campaign_start(Log& log, const Plan& plan, const Options& option
   if (plan.config.prepare.dt_fraction > 0.5)
     log.line("warning: prepare.dt_fraction = " + num(plan.config.prepare.dt_fraction) +
              " > 0.5 of the Rayleigh time: contact collisions resolved by few steps");
+  if (!plan.output_note.empty()) log.line("warning: output: " + plan.output_note);
 }
 
 // Runs the selected preparations and tests (all of a whole run) and writes the campaign's index.
@@ -1947,7 +2006,9 @@ int triaxial_main(int argc, const char* const* argv, std::ostream& out, std::ost
   }
   if (cl.check_only) {
     out << "triaxial: " << plan.config.source << ": valid: " << plan.config.tests.size() << " test(s), "
-        << plan.p0.size() << " sample(s), dt = " << num(plan.base.dt) << " s\n";
+        << plan.p0.size() << " sample(s), dt = " << num(plan.base.dt) << " s, results ~"
+        << num(plan.output_bytes / double(1 << 30), "%.3g") << " GiB (estimated)\n";
+    if (!plan.output_note.empty()) out << "warning: output: " << plan.output_note << '\n';
     return 0;
   }
   plan.out = output_directory(options);

@@ -196,6 +196,13 @@ TEST_CASE("triaxial: each class of bad input exits 2 naming the key, and clobber
       {"an axial rate beyond 1e-3 of strain a step",
        std::string(base).replace(base.find("strain_rate = 2.0"), 17, "strain_rate = 1e308"),
        "shear.strain_rate = 1e+308 1/s: allowed: at most 0.001 of strain a step"},
+      // A snapshot every step: 3,368 snapshots of 300 spheres x (112 B + 4 KiB) ~ 0.12 GiB, above a
+      // limit of 0.05 GiB (the default limit, 64 GiB, is checked below on the embedded default).
+      {"snapshots above output.max_size_gib", with("output", "snapshot_interval = 1\nmax_size_gib = 0.05"),
+       "output.snapshot_interval = 1: ~0.12 GiB of results (estimated: 1 test(s) x 3.37e+03 steps x 300 spheres); "
+       "allowed: <= output.max_size_gib = 0.05 GiB: raise the interval to 34"},
+      {"a size limit below what the intervals as set write", with("output", "max_size_gib = 1e-6"),
+       "output.max_size_gib = 1e-06: below the ~"},
   };
   for (const Case& c : cases) {
     const std::string what = c.what;
@@ -658,6 +665,57 @@ TEST_CASE("triaxial: --resume with a config whose physics changed is refused, li
   const Result ok = run({(dir / "safe.toml").string(), "--out", out, "--resume"});
   INFO(ok.err);
   CHECK(ok.code == 0);
+  fs::remove_all(dir);
+}
+
+TEST_CASE(
+    "triaxial: the results' size is estimated before the run: refused above output.max_size_gib, warned above 1 GiB") {
+  const fs::path dir = fresh_dir("output_size");
+  // The embedded default (2,000 spheres to 20 % at dt = 5.3e-7 s: 3.75e5 steps) with a snapshot
+  // every step: ~80 GiB, above the default limit of 64 GiB. Refused, nothing written.
+  std::string every = triaxial::k_default_config;
+  every.replace(every.find("series_interval = 1000"), 22, "series_interval = 1000\nsnapshot_interval = 1");
+  write(dir / "every.toml", every);
+  const Result r = run({(dir / "every.toml").string(), "--out", (dir / "out").string()});
+  INFO(r.err);
+  CHECK(r.code == 2);
+  CHECK(r.err.find(
+            "output.snapshot_interval = 1: ~79.8 GiB of results (estimated: 1 test(s) x 3.75e+05 steps x 2000 "
+            "spheres); allowed: <= output.max_size_gib = 64 GiB: raise the interval to 3755 (~100 snapshots a test) or "
+            "the limit") != std::string::npos);
+  CHECK(!fs::exists(dir / "out"));
+  // The audit's case, 200 spheres to 3 % with a snapshot every step (1.4 GB written): under the
+  // limit, so it runs, with a warning; the default config stays quiet.
+  write(
+      dir / "audit.toml",
+      "[sample]\ncount = 200\n[shear]\nstrain_rate = 1.0\nmax_axial_strain = 0.03\n[output]\nsnapshot_interval = 1\n");
+  const Result audit = run({(dir / "audit.toml").string(), "--check"});
+  CHECK(audit.code == 0);
+  CHECK(audit.out.find("warning: output: ~1.39 GiB of results (estimated: 1 test(s) x 5.63e+04 steps x 200 spheres, "
+                       "output.snapshot_interval = 1), above 1 GiB") != std::string::npos);
+  const Result quiet = run({"--check"});
+  CHECK(quiet.code == 0);
+  CHECK(quiet.out.find("warning") == std::string::npos);
+  // The estimate against the files a run writes (the test's and the preparation's results and
+  // XDMF), with a snapshot every 10 steps: 337 snapshots of 300 spheres. It rounds each snapshot's
+  // headers up to 4 KiB (measured 3.8) and a file's start up to 1 MiB (measured 0.95): above by
+  // 5 % here, by at most 15 % (the files of a run with no interval snapshots).
+  std::string snapshots = k_small;
+  snapshots.replace(snapshots.find("series_interval = 100"), 21, "series_interval = 100\nsnapshot_interval = 10");
+  write(dir / "snapshots.toml", snapshots);
+  const Result check = run({(dir / "snapshots.toml").string(), "--check"});
+  REQUIRE(check.code == 0);
+  const std::size_t at = check.out.find("results ~");
+  REQUIRE(at != std::string::npos);
+  const double estimate = std::stod(check.out.substr(at + 9)) * double(1 << 30);
+  REQUIRE(run({(dir / "snapshots.toml").string(), "--out", (dir / "run").string()}).code == 0);
+  double written = 0.0;
+  for (const char* f :
+       {"p-b0.50-p0_100kPa.h5", "p-b0.50-p0_100kPa.xdmf", "prepare-p0_100kPa.h5", "prepare-p0_100kPa.xdmf"})
+    written += double(fs::file_size(dir / "run" / f));
+  MESSAGE("estimated ", estimate, " B, written ", written, " B");
+  CHECK(estimate >= written);
+  CHECK(estimate <= 1.15 * written);
   fs::remove_all(dir);
 }
 
