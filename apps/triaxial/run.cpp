@@ -119,6 +119,17 @@ struct Interrupted : std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
+// A job whose lock another process holds (the same --task run twice): bad input, not a failed test.
+struct InUse : std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
+
+// The message of a job found in use: the job, its lock file and the holder's PID and host.
+std::string in_use_message(const fs::path& lock, const std::string& job) {
+  return job + " is in use: " + lock.string() + " is held by " + FileLock::holder(lock) +
+         "; not started twice; allowed: wait for it to end, or run another task";
+}
+
 // Everything derived from the config before anything runs.
 struct Plan {
   Config config;
@@ -1025,9 +1036,8 @@ void ShearRun::plot() const {
 void Runner::shear(const TestSpec& test, Summary& summary) {
   summary.name = test.name;
   FileLock job;
-  if (!job.try_lock(plan_.out / ".locks" / (test.name + ".lock"), FileLock::Mode::exclusive))
-    throw std::runtime_error("running in another process (" +
-                             FileLock::holder(plan_.out / ".locks" / (test.name + ".lock")) + "); not started twice");
+  const fs::path lock = plan_.out / ".locks" / (test.name + ".lock");
+  if (!job.try_lock(lock, FileLock::Mode::exclusive)) throw InUse(in_use_message(lock, "test " + test.name));
   ShearRun run(plan_, log_, test, summary);
   if (!run.open(*this, sample_path(test.p0))) return;  // complete in an earlier run
   run.run();
@@ -1441,8 +1451,8 @@ class Campaign {
   /// (other tasks' finished samples and tests), merged under a lock.
   void write_indices();
   int failures() const { return failures_; }
-  /// 0 done, 1 a job failed, 3 stopped (a signal or --stop-after).
-  int exit_code() const { return failures_ ? 1 : interrupted_ ? 3 : 0; }
+  /// 0 done, 1 a job failed, 2 a job in use by another process, 3 stopped (a signal or --stop-after).
+  int exit_code() const { return failures_ ? 1 : in_use_ ? 2 : interrupted_ ? 3 : 0; }
 
  private:
   void failed(const std::string& what, const std::exception& e);
@@ -1456,7 +1466,7 @@ class Campaign {
   Runner runner_;
   std::vector<Summary> prep_, tests_;
   std::vector<char> prepared_;
-  int failures_ = 0, interrupted_ = 0;
+  int failures_ = 0, interrupted_ = 0, in_use_ = 0;
   std::mutex failure_mutex_;
 };
 
@@ -1466,6 +1476,11 @@ void Campaign::failed(const std::string& what, const std::exception& e) {
   if (dynamic_cast<const Interrupted*>(&e)) {
     ++interrupted_;
     log_.line(std::string(e.what()) + "; continue with --resume");
+    return;
+  }
+  if (dynamic_cast<const InUse*>(&e)) {  // another process runs it: what the directory says goes in the index
+    ++in_use_;
+    log_.line("triaxial: " + std::string(e.what()));
     return;
   }
   ++failures_;
@@ -1526,7 +1541,9 @@ void Campaign::shear_test(std::size_t k) {
     }
     runner_.shear(t, tests_[k]);
   } catch (const std::exception& e) {
-    tests_[k].status = dynamic_cast<const Interrupted*>(&e) ? "interrupted" : "failed";
+    tests_[k].status = dynamic_cast<const Interrupted*>(&e) ? "interrupted"
+                       : dynamic_cast<const InUse*>(&e)     ? "in use"
+                                                            : "failed";
     failed(t.name, e);
   }
 }
@@ -1543,7 +1560,8 @@ void Campaign::write_indices() {
           prep_[k].name = "prepare-" + p0_tag(plan_.p0[k]);
       }
     for (std::size_t k = 0; k < tests_.size(); ++k)
-      if (!run_test_[k]) tests_[k] = runner_.test_summary_on_disk(plan_.config.tests[k]);
+      if (!run_test_[k] || tests_[k].status == "in use")
+        tests_[k] = runner_.test_summary_on_disk(plan_.config.tests[k]);
     write_index(plan_, prep_, tests_);
   } catch (const std::exception& e) {
     failed("index.csv", e);
@@ -1710,6 +1728,31 @@ static int slurm_main(int argc, const char* const* argv, std::ostream& out, std:
   return submit_slurm_scripts(c, out, err);
 }
 
+// --task: a selected job whose lock another process holds (the same task run twice at once) is
+// refused before anything runs or is removed. Each lock is taken and released; a job another
+// process starts after this probe is caught when its own lock is taken (InUse).
+static int check_jobs_free(const Plan& plan, const std::vector<char>& run_prep, const std::vector<char>& run_test,
+                           std::ostream& err) {
+  std::vector<std::pair<std::string, std::string>> jobs;  // (lock file name, job)
+  for (std::size_t k = 0; k < plan.p0.size(); ++k)
+    if (run_prep[k]) jobs.emplace_back("prepare-" + p0_tag(plan.p0[k]), "preparation prepare-" + p0_tag(plan.p0[k]));
+  for (std::size_t k = 0; k < plan.config.tests.size(); ++k)
+    if (run_test[k]) jobs.emplace_back(plan.config.tests[k].name, "test " + plan.config.tests[k].name);
+  for (const auto& [name, job] : jobs) {
+    const fs::path lock = plan.out / ".locks" / (name + ".lock");
+    FileLock probe;
+    try {
+      if (probe.try_lock(lock, FileLock::Mode::exclusive)) continue;
+    } catch (const std::exception& e) {
+      err << "triaxial: " << one_line(e.what()) << '\n';
+      return 1;
+    }
+    err << "triaxial: --task: " << one_line(in_use_message(lock, job)) << '\n';
+    return 2;
+  }
+  return 0;
+}
+
 // Makes the output directory this run's: refuses to replace an earlier run's files unless asked,
 // takes the directory's lock (held in `dir_lock` for the run), checks a resumed run's config
 // against the one it was made with, applies --overwrite and records the config. Returns 0, or
@@ -1778,6 +1821,8 @@ static int claim_directory(const Plan& plan, const Options& options, bool select
       return 2;
     }
   }
+  if (selected)
+    if (const int code = check_jobs_free(plan, run_prep, run_test, err); code != 0) return code;
   if (options.overwrite)
     for (const fs::path& f : files) fs::remove(f, ec);
   try {

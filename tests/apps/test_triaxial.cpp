@@ -24,6 +24,7 @@
 #include <sstream>
 #include <optional>
 #include <string>
+#include <thread>
 #include <vector>
 
 using namespace sandcell;
@@ -716,6 +717,64 @@ TEST_CASE(
   MESSAGE("estimated ", estimate, " B, written ", written, " B");
   CHECK(estimate >= written);
   CHECK(estimate <= 1.15 * written);
+  fs::remove_all(dir);
+}
+
+TEST_CASE(
+    "triaxial: the same --task run twice at once: the second exits 2 naming the job and its lock, no test failed") {
+  const fs::path dir = fresh_dir("in_use");
+  std::string campaign = k_small;
+  campaign.replace(campaign.find("b = 0.5"), 7, "b = [0.5, 1.0]");
+  write(dir / "campaign.toml", campaign);
+  const std::string c = (dir / "campaign.toml").string(), out = (dir / "out").string();
+  const std::string test = "p-b1.00-p0_100kPa";
+  const fs::path lock = dir / "out" / ".locks" / (test + ".lock");
+  // A test whose job lock another process holds (taken here as that process would hold it):
+  // refused before anything runs, the lock and the holder named.
+  fs::create_directories(lock.parent_path());
+  {
+    triaxial::FileLock held;
+    REQUIRE(held.try_lock(lock, triaxial::FileLock::Mode::exclusive));
+    const Result r = run({c, "--out", out, "--task", "2"});
+    INFO(r.err);
+    CHECK(r.code == 2);
+    CHECK(r.err.find("--task: test " + test + " is in use: " + lock.string() + " is held by PID " +
+                     std::to_string(::getpid())) != std::string::npos);
+    CHECK(std::count(r.err.begin(), r.err.end(), '\n') == 1);
+    CHECK(!fs::exists(dir / "out" / "index.csv"));
+    CHECK(!fs::exists(dir / "out" / "sample-p0_100kPa.h5"));
+  }
+  // Two runs of the task at once, as two array tasks would start: both find the lock free, one
+  // prepares the sample while the other waits for it, then the first shears and the second finds
+  // the test's lock held. To 20 % the shearing takes ~1 s, far longer than the second needs to
+  // reach the lock once the sample is there.
+  // (Two threads of this process stand for the two processes: each run holds its locks on its own
+  // open files, which exclude each other as two processes' do; the run's config is recorded first,
+  // as the directory's first run would have, so that they do not both write it.)
+  std::string longer = campaign;
+  longer.replace(longer.find("max_axial_strain = 0.03"), 23, "max_axial_strain = 0.2");
+  write(dir / "longer.toml", longer);
+  fs::create_directories(dir / "out2");
+  write(dir / "out2" / ".config.toml", longer);
+  const std::string l = (dir / "longer.toml").string(), out2 = (dir / "out2").string();
+  const std::string shorter = "p-b0.50-p0_100kPa";
+  Result first, second;
+  std::thread a([&] { first = run({l, "--out", out2, "--task", "1", "--resume", "--threads", "1"}); });
+  std::thread b([&] { second = run({l, "--out", out2, "--task", "1", "--resume", "--threads", "1"}); });
+  a.join();
+  b.join();
+  const Result& loser = first.code == 2 ? first : second;
+  const Result& winner = first.code == 2 ? second : first;
+  INFO(first.out, first.err, second.out, second.err);
+  CHECK(winner.code == 0);
+  CHECK(loser.code == 2);
+  // Found in use when its lock is taken (in the log), or already by the check before the run.
+  const std::string said = loser.out + loser.err;
+  CHECK(said.find("test " + shorter + " is in use: " + (dir / "out2" / ".locks" / (shorter + ".lock")).string() +
+                  " is held by ") != std::string::npos);
+  CHECK(said.find("failed") == std::string::npos);
+  const std::string index = read(dir / "out2" / "index.csv");
+  CHECK(index.find(shorter + ",constant_p,0.5,100000," + shorter + ".h5,done,") != std::string::npos);
   fs::remove_all(dir);
 }
 
