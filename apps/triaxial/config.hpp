@@ -100,6 +100,19 @@ Config parse_config(const std::string& text, const std::string& source);
 /// output.*, tests.*, shear.max_axial_strain) are left out unless `include_safe`.
 std::vector<std::string> changed_keys(const std::string& before, const std::string& after, bool include_safe = false);
 
+/// A key whose effective value differs between two configs, with both values as text.
+struct KeyChange {
+  std::string key;     // "section.key"
+  std::string before;  // the value in the first config (e.g. the one a sample was prepared with)
+  std::string after;   // the value in the second
+};
+
+/// The keys that shape a prepared sample ([sample], material density, young, poisson and
+/// restitution, [contact], the preparation's time step and [prepare] but max_steps) whose
+/// effective values differ between `before` (the config text a sample was prepared with) and
+/// `after`. A `before` that no longer parses is compared key by key as written.
+std::vector<KeyChange> sample_changes(const std::string& before, const Config& after);
+
 /// Short text name of a path ("constant_p", ...).
 const char* path_name(ShearPath path);
 

@@ -1753,6 +1753,56 @@ static int check_jobs_free(const Plan& plan, const std::vector<char>& run_prep, 
   return 0;
 }
 
+// --resume and --task shear the samples they find in --out: one prepared with other values of the
+// keys that shape a sample (a copied sample, an earlier config) is refused, naming the first key
+// and both values, unless --allow-change names every such key. `replaced`: the files --overwrite
+// removes (their samples are prepared again). A sample that cannot be read is left to the job,
+// which fails naming it (exit 1).
+static int check_samples(const Plan& plan, const Options& options, const std::vector<fs::path>& replaced,
+                         std::ostream& err) {
+  for (double p0 : plan.p0) {
+    const fs::path sample = plan.out / ("sample-" + p0_tag(p0) + ".h5");
+    if (!fs::exists(sample) ||
+        (options.overwrite && std::find(replaced.begin(), replaced.end(), sample) != replaced.end()))
+      continue;
+    CheckpointExtra extra;
+    std::size_t count = 0;
+    try {
+      count = read_checkpoint(sample, &extra).particles.size();
+    } catch (const std::exception&) {
+      continue;
+    }
+    std::vector<KeyChange> changes;
+    if (const auto it = extra.strings.find("config"); it != extra.strings.end()) {
+      try {
+        changes = sample_changes(it->second, plan.config);
+      } catch (const std::exception& e) {
+        err << "triaxial: " << sample.string() << ": cannot read the config it was prepared with ("
+            << one_line(e.what()) << ")\n";
+        return 1;
+      }
+    } else if (!plan.from_file && count != plan.config.sample.generation.count) {  // a sample without its config
+      changes.push_back({"sample.count", std::to_string(count), std::to_string(plan.config.sample.generation.count)});
+    }
+    std::vector<KeyChange> refused;
+    for (const KeyChange& c : changes)
+      if (std::find(options.allow_change.begin(), options.allow_change.end(), c.key) == options.allow_change.end())
+        refused.push_back(c);
+    if (refused.empty()) continue;
+    std::string keys;
+    for (const KeyChange& c : refused) keys += (keys.empty() ? "" : " ") + c.key;
+    const KeyChange& c = refused.front();
+    err << "triaxial: "
+        << one_line(sample.string() + " was prepared with " + c.key + " = " + c.before + ", not " + c.after +
+                    (refused.size() > 1 ? " (differing too: " + keys.substr(c.key.size() + 1) + ")" : "") +
+                    "; allowed: the sample's values, another --out, or --allow-change " + keys +
+                    " to shear it as it is")
+        << '\n';
+    return 2;
+  }
+  return 0;
+}
+
 // Makes the output directory this run's: refuses to replace an earlier run's files unless asked,
 // takes the directory's lock (held in `dir_lock` for the run), checks a resumed run's config
 // against the one it was made with, applies --overwrite and records the config. Returns 0, or
@@ -1823,6 +1873,8 @@ static int claim_directory(const Plan& plan, const Options& options, bool select
   }
   if (selected)
     if (const int code = check_jobs_free(plan, run_prep, run_test, err); code != 0) return code;
+  if (options.resume || selected)
+    if (const int code = check_samples(plan, options, files, err); code != 0) return code;
   if (options.overwrite)
     for (const fs::path& f : files) fs::remove(f, ec);
   try {

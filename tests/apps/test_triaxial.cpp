@@ -721,6 +721,65 @@ TEST_CASE(
 }
 
 TEST_CASE(
+    "triaxial: --resume or --task refuses a sample prepared with other sample keys, naming the key and both values") {
+  // Before: a directory holding only a copied sample (as `triaxial study` makes them) was resumed
+  // with sample.count changed; the old sample was sheared and the new count recorded.
+  const fs::path dir = fresh_dir("sample_keys");
+  write(dir / "run.toml", k_small);
+  REQUIRE(run({(dir / "run.toml").string(), "--out", (dir / "a").string(), "--prepare-only"}).code == 0);
+  const std::string sample = "sample-p0_100kPa.h5";
+  const std::string prepared = read(dir / "a" / sample);
+  const auto copied = [&](const std::string& name) {
+    fs::create_directories(dir / name);
+    fs::copy_file(dir / "a" / sample, dir / name / sample);
+    return (dir / name).string();
+  };
+  const auto config = [&](const std::string& name, const std::string& from, const std::string& to) {
+    std::string c = k_small;
+    c.replace(c.find(from), from.size(), to);
+    write(dir / name, c);
+    return (dir / name).string();
+  };
+  const std::string count = config("count.toml", "count = 300", "count = 200");
+  const std::string out = copied("b");
+  const Result r = run({count, "--out", out, "--resume"});
+  INFO(r.err);
+  CHECK(r.code == 2);
+  CHECK(r.err.find(sample + " was prepared with sample.count = 300, not 200") != std::string::npos);
+  CHECK(r.err.find("--allow-change sample.count") != std::string::npos);
+  CHECK(std::count(r.err.begin(), r.err.end(), '\n') == 1);
+  CHECK(read(dir / "b" / sample) == prepared);  // nothing lost or clobbered, nothing sheared
+  CHECK(!fs::exists(dir / "b" / "index.csv"));
+  CHECK(!fs::exists(dir / "b" / "p-b0.50-p0_100kPa.h5"));
+  // The preparation's step (time.dt_fraction when prepare.dt_fraction is not given) and the
+  // restitution shape the sample too: the first is named, the other listed.
+  std::string both = k_small + "[time]\ndt_fraction = 0.1\n";
+  both.replace(both.find("young = 1.0e9"), 13, "young = 1.0e9\nrestitution = 0.9");
+  write(dir / "both.toml", both);
+  const Result r2 = run({(dir / "both.toml").string(), "--out", out, "--resume"});
+  INFO(r2.err);
+  CHECK(r2.code == 2);
+  CHECK(r2.err.find("was prepared with material.restitution = 0.5") != std::string::npos);
+  CHECK(r2.err.find("(differing too: prepare.dt_fraction)") != std::string::npos);
+  // A run of selected tasks is checked the same way.
+  std::string campaign = k_small;
+  campaign.replace(campaign.find("b = 0.5"), 7, "b = [0.5, 1.0]");
+  campaign.replace(campaign.find("count = 300"), 11, "count = 200");
+  write(dir / "campaign.toml", campaign);
+  const Result task = run({(dir / "campaign.toml").string(), "--out", copied("c"), "--task", "2"});
+  CHECK(task.code == 2);
+  CHECK(task.err.find("was prepared with sample.count = 300") != std::string::npos);
+  CHECK(!fs::exists(dir / "c" / "p-b1.00-p0_100kPa.h5"));
+  // --allow-change names a change meant (the documented way to shear this sample as it is); a key
+  // that does not shape the sample (material.friction) needs nothing.
+  CHECK(run({count, "--out", out, "--resume", "--allow-change", "sample.count", "--stop-after", "1"}).code == 3);
+  CHECK(run({config("friction.toml", "young = 1.0e9", "young = 1.0e9\nfriction = 0.3"), "--out", copied("d"),
+             "--resume", "--stop-after", "1"})
+            .code == 3);
+  fs::remove_all(dir);
+}
+
+TEST_CASE(
     "triaxial: the same --task run twice at once: the second exits 2 naming the job and its lock, no test failed") {
   const fs::path dir = fresh_dir("in_use");
   std::string campaign = k_small;

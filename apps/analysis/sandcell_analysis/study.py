@@ -85,6 +85,11 @@ PRESETS = {
 }
 
 
+# The keys that shape a prepared sample which the dt and e axes vary: their runs shear the
+# reference's sample as it is (`triaxial --allow-change`).
+SHARED_SAMPLE_KEYS = ("prepare.dt_fraction", "material.restitution")
+
+
 METRICS = [("peak_eta", "peak q/p"), ("res_eta", "residual q/p"), ("res_e", "residual e"),
            ("max_dilation", "max -d")]
 
@@ -206,7 +211,9 @@ def run_variant(name, cfg, args, share_sample_from=None):
         for fn in os.listdir(share_sample_from):
             if fn.startswith("sample-") and fn.endswith(".h5") and not os.path.exists(os.path.join(out, fn)):
                 shutil.copy2(os.path.join(share_sample_from, fn), os.path.join(out, fn))
-        cmd.append("--resume")
+        # The reference's sample was prepared at its own dt and restitution: sheared as it is on purpose
+        # (the app refuses a sample whose preparation differs from the config unless told).
+        cmd += ["--resume", "--allow-change", *SHARED_SAMPLE_KEYS]
     elif any(fn.endswith(".checkpoint.h5") for fn in os.listdir(out)):
         cmd.append("--resume")
     else:
