@@ -1973,8 +1973,16 @@ static void add_run_options(CLI::App& app, CommandLine& cl) {
   app.add_flag("--print-default", cl.print_default, "print the embedded default configuration and exit");
   app.add_flag("--check", cl.check_only,
                "check the configuration (and plan the campaign) and exit; nothing is written");
+  // Checked as written: CLI11 would read -1 into the unsigned count as 2^64 - 1 (never stops).
   app.add_option("--stop-after", options.stop_after,
-                 "stop every job after N steps with a checkpoint, as if killed (to test --resume)");
+                 "stop every job after N steps with a checkpoint, as if killed (to test --resume)")
+      ->check(CLI::Validator(
+          [](std::string& text) {
+            const bool digits =
+                !text.empty() && text.size() <= 19 && text.find_first_not_of("0123456789") == std::string::npos;
+            return digits && std::stoull(text) >= 1 ? std::string() : text + ": allowed: an integer >= 1 (steps)";
+          },
+          "N >= 1"));
 }
 
 // Parses the command line of a run into `cl`. Returns the exit code when the process ends here
@@ -1999,6 +2007,15 @@ static std::optional<int> parse_command_line(int argc, const char* const* argv, 
 static int check_options(const Options& options, std::ostream& err) {
   if (options.resume && options.overwrite) {
     err << "triaxial: --resume and --overwrite exclude each other\n";
+    return 2;
+  }
+  // A setting that would have no effect is refused: --allow-change lets a resumed run's config differ
+  // from the one it was made with, and only --resume and --task resume one.
+  if (!options.allow_change.empty() && !options.resume && options.task_specs.empty()) {
+    err << "triaxial: --allow-change " << options.allow_change.front()
+        << (options.allow_change.size() > 1 ? " ..." : "")
+        << ": has no effect without --resume or --task (it lets their config differ from the run's); allowed: add "
+           "--resume, or leave it out\n";
     return 2;
   }
   if (std::isnan(options.max_axial_strain)) {

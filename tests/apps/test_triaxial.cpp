@@ -245,6 +245,19 @@ TEST_CASE("triaxial: each class of bad input exits 2 naming the key, and clobber
   CHECK(long_out.code == 2);
   CHECK(long_out.err.find("--out = ooo") != std::string::npos);
   CHECK(!fs::exists(dir / "x"));
+  write(dir / "good.toml", base);
+  // A setting that would have no effect: --allow-change without --resume or --task; --stop-after
+  // below 1 (CLI11 read -1 into the unsigned count as 2^64 - 1, a run that never stops).
+  const Result allow =
+      run({(dir / "good.toml").string(), "--out", (dir / "x").string(), "--allow-change", "sample.count"});
+  CHECK(allow.code == 2);
+  CHECK(allow.err.find("--allow-change sample.count: has no effect without --resume or --task") != std::string::npos);
+  for (const char* n : {"-1", "0"}) {
+    const Result stop = run({(dir / "good.toml").string(), "--out", (dir / "x").string(), "--stop-after", n});
+    CHECK(stop.code == 2);
+    CHECK(stop.err.find(std::string("--stop-after: ") + n + ": allowed: an integer >= 1") != std::string::npos);
+  }
+  CHECK(!fs::exists(dir / "x"));
   const Result t = run({"--threads", "0"});
   CHECK(t.code == 2);
   CHECK(t.err.find("--threads") != std::string::npos);
