@@ -408,8 +408,14 @@ def main():
     ap.add_argument("--triaxial", default=os.environ.get("SANDCELL_TRIAXIAL", "triaxial"),
                     help="the triaxial binary (default: the one that started the study)")
     args = ap.parse_args()
-    if args.threads < 1:
-        fail(f"--threads = {args.threads}: must be >= 1")
+    # Every option is checked before anything runs (a bad --window used to fail after the runs).
+    if not 1 <= args.threads <= 1024:
+        fail(f"--threads = {args.threads}: must be in [1, 1024] (the range of triaxial --threads)")
+    if not (math.isfinite(args.window) and args.window > 0.0):
+        fail(f"--window = {args.window}: must be > 0 (axial strain; values above a third of the preset's strain "
+             "are cut to it)")
+    if shutil.which(args.triaxial) is None:
+        fail(f"--triaxial = {args.triaxial}: not an executable (give the path of the triaxial binary)")
     axes = args.axes.split(",")
     for a in axes:
         if a not in ("dt", "I", "E", "e", "N", "seed"):
