@@ -37,7 +37,10 @@ shear() {
   [ -e "$dir/sample-$tag.h5" ] || cp "$work/prepare-s$2/sample-$tag.h5" "$dir/"
   local base="$configs/$3.toml"
   [ "$3" = "paper-fast" ] && { seeded "$2" > "$work/$1.base.toml"; base="$work/$1.base.toml"; }
-  run "$dir" "$(narrow "$base" "$4" constant_p "$5")" 1
+  # The paper protocol shears the fast protocol's sample as it is (prepared chained, at 0.5 t_R).
+  local allow=()
+  [ "$3" = "paper" ] && allow=(--allow-change prepare.chain prepare.dt_fraction)
+  run "$dir" "$(narrow "$base" "$4" constant_p "$5")" 1 ${allow[@]+"${allow[@]}"}
 }
 
 echo "$(date +%T) preparing seed 2017"

@@ -1,5 +1,6 @@
 #include "config.hpp"
 
+#include "critical.hpp"
 #include "systems/contact_pass.hpp"
 
 #include <toml++/toml.h>
@@ -308,7 +309,11 @@ void parse_sample(const toml::table& root, const std::string& source, SampleConf
 // [material]: the spheres' material (restored for shearing after the preparation's friction).
 void parse_material(const toml::table& root, const std::string& source, Material& m) {
   Section s = section(root, "material", source);
-  s.positive("density", m.density, "kg/m^3");
+  // Solids lie between ~100 kg/m^3 (foams) and 22,600 (osmium); mass scaling of quasi-static DEM
+  // multiplies that by up to ~1e6. Far outside, the time step (~ sqrt(density)) vanishes or the
+  // inertia swamps the test, and a later check would blame another key (1e-300 blamed material.young).
+  s.number("density", m.density, 1.0, 1e10,
+           "must be in [1, 1e10] kg/m^3 (solids 100-22,600; mass scaling up to ~1e6 x)");
   s.positive("young", m.young, "Pa");
   s.number("poisson", m.poisson, -0.999, 0.499, "must be in (-1, 0.5)");
   s.number("restitution", m.restitution, 1e-6, 1.0, "must be in (0, 1]");
@@ -404,6 +409,13 @@ void parse_shear(const toml::table& root, const std::string& source, ShearConfig
   const std::vector<double> rates = s.numbers("strain_rates", "three finite rates in 1/s");
   if (!rates.empty()) {
     if (rates.size() != 3) s.fail("strain_rates", std::to_string(rates.size()) + " values", "expected 3 rates (1/s)");
+    // At 1e6 1/s a cell changes by its own size in a microsecond: no element test is that fast (1e308
+    // collapsed the cell in the first step, blamed on shear.steps). The strain a step is bounded
+    // once dt is known (run.cpp, check_strain_per_step).
+    for (std::size_t k = 0; k < 3; ++k)
+      if (!(std::abs(rates[k]) <= 1e6))
+        s.fail("strain_rates[" + std::to_string(k) + "]", num(rates[k]),
+               "must be in [-1e6, 1e6] 1/s (compression positive)");
     h.strain_rates = Vec3(rates[0], rates[1], rates[2]);
   }
   s.integer("steps", h.steps, 0, UINT64_MAX, "must be an integer >= 0");
@@ -502,6 +514,8 @@ void parse_output(const toml::table& root, const std::string& source, OutputConf
   s.number("checkpoint_minutes", o.checkpoint_minutes, 0.0, 1e6, "must be >= 0 minutes (0: by steps only)");
   s.integer("flush_interval", o.flush_interval, 1, 1'000'000, "must be an integer >= 1 row");
   s.boolean("plot", o.plot);
+  s.number("max_size_gib", o.max_size_gib, 1e-6, 1e6,
+           "must be in (0, 1e6] GiB (the largest estimated size of the run's results files)");
   s.check_unknown();
 }
 
@@ -529,6 +543,15 @@ void check_shear_for_tests(const Config& c, const std::string& source) {
       throw ConfigError(source + ": shear.ramp_strain = " + num(c.shear.ramp_strain) +
                         ": the ramp applies to the stress paths' axial rate; path \"strain\" allows 0 only");
   }
+  // Critical state is tested once a test has sheared critical_window + pre_strain (critical.hpp):
+  // with no room for that before max_axial_strain, stop_at_critical could never stop a test.
+  const double pre = CriticalTest{}.pre_strain;
+  if (stress_path && c.shear.stop_at_critical && c.shear.critical_window + pre >= c.shear.max_axial_strain)
+    throw ConfigError(source + ": shear.critical_window = " + num(c.shear.critical_window) +
+                      " with shear.max_axial_strain = " + num(c.shear.max_axial_strain) +
+                      ": shear.stop_at_critical tests critical state only after critical_window + " + num(pre) +
+                      " of axial strain; allowed: critical_window < max_axial_strain - " + num(pre) +
+                      ", or stop_at_critical = false");
   if (c.shear.ramp_strain >= c.shear.max_axial_strain)
     throw ConfigError(source + ": shear.ramp_strain = " + num(c.shear.ramp_strain) +
                       ": must be below shear.max_axial_strain = " + num(c.shear.max_axial_strain));
@@ -632,6 +655,102 @@ std::vector<std::string> changed_keys(const std::string& before, const std::stri
     if (!a.count(k) && (include_safe || !safe_to_change(k))) keys.push_back(k);
   std::sort(keys.begin(), keys.end());
   return keys;
+}
+
+namespace {
+
+const char* distribution_name(SizeDistribution::Kind k) {
+  return k == SizeDistribution::Kind::gradation ? "gradation" : "uniform";
+}
+const char* tangential_name(TangentialModel m) { return m == TangentialModel::incremental ? "incremental" : "history"; }
+const char* rolling_name(RollingModel m) {
+  switch (m) {
+    case RollingModel::epsd2: return "epsd2";
+    case RollingModel::epsd: return "epsd";
+    case RollingModel::cdt: return "cdt";
+    case RollingModel::none: return "none";
+  }
+  return "?";
+}
+
+// The values of the keys that shape a prepared sample, as text, in the order they are reported.
+// material.friction and rolling_friction are left out (the preparation uses prepare.*; the
+// material's are restored for shearing), as is prepare.max_steps (it only ends a preparation that
+// does not converge). The preparation's step is prepare.dt_fraction, else time.dt_fraction.
+std::vector<std::pair<std::string, std::string>> sample_values(const Config& c) {
+  const GenerationSettings& g = c.sample.generation;
+  const ContactSettings& k = c.contact;
+  const PrepareConfig& p = c.prepare;
+  std::string gradation;
+  for (const auto& [d, pct] : g.sizes.table)
+    gradation += (gradation.empty() ? "[" : ", [") + num(d) + ", " + num(pct) + "]";
+  const auto v_char = k.parameters.find("characteristic_velocity");
+  return {
+      {"sample.file", "\"" + c.sample.packing_file + "\""},
+      {"sample.count", std::to_string(g.count)},
+      {"sample.distribution", distribution_name(g.sizes.kind)},
+      {"sample.d_min", num(g.sizes.d_min)},
+      {"sample.d_max", num(g.sizes.d_max)},
+      {"sample.gradation", "[" + gradation + "]"},
+      {"sample.solid_fraction", num(g.solid_fraction)},
+      {"sample.seed", std::to_string(g.seed)},
+      {"material.density", num(c.material.density)},
+      {"material.young", num(c.material.young)},
+      {"material.poisson", num(c.material.poisson)},
+      {"material.restitution", num(c.material.restitution)},
+      {"contact.normal", "\"" + k.normal + "\""},
+      {"contact.characteristic_velocity", v_char == k.parameters.end() ? "(none)" : num(v_char->second)},
+      {"contact.tangential", tangential_name(k.tangential)},
+      {"contact.rolling", rolling_name(k.rolling)},
+      {"contact.rolling_damping", num(k.rolling_damping)},
+      {"contact.skin", num(k.skin)},
+      {"contact.sort_interval", std::to_string(k.sort_interval)},
+      {"contact.liggghts_compat", k.liggghts_compat ? "true" : "false"},
+      {"prepare.dt_fraction", num(p.dt_fraction > 0.0 ? p.dt_fraction : c.dt_fraction)},
+      {"prepare.friction", num(p.friction)},
+      {"prepare.rolling_friction", num(p.rolling_friction)},
+      {"prepare.gain", num(p.gain)},
+      {"prepare.max_rate", num(p.max_rate)},
+      {"prepare.tolerance", num(p.tolerance)},
+      {"prepare.unbalanced", num(p.unbalanced)},
+      {"prepare.check_interval", std::to_string(p.check_interval)},
+      {"prepare.chain", p.chain ? "true" : "false"},
+  };
+}
+
+// Whether a key as written shapes the sample (the fallback of sample_changes).
+bool shapes_sample(const std::string& key) {
+  static const std::set<std::string> material = {"material.density", "material.young", "material.poisson",
+                                                 "material.restitution", "time.dt_fraction"};
+  return key.rfind("sample.", 0) == 0 || key.rfind("contact.", 0) == 0 ||
+         (key.rfind("prepare.", 0) == 0 && key != "prepare.max_steps") || material.count(key);
+}
+
+}  // namespace
+
+std::vector<KeyChange> sample_changes(const std::string& before, const Config& after) {
+  std::vector<KeyChange> out;
+  Config old;
+  try {
+    old = parse_config(before, "the sample's config");
+  } catch (const ConfigError&) {
+    // Written by another version, whose config this one refuses: the keys as written.
+    const auto a = flatten(before), b = flatten(after.text);
+    std::set<std::string> keys;
+    for (const auto* m : {&a, &b})
+      for (const auto& [key, value] : *m)
+        if (shapes_sample(key)) keys.insert(key);
+    for (const std::string& key : keys) {
+      const auto x = a.find(key), y = b.find(key);
+      const std::string vx = x == a.end() ? "(not given)" : x->second, vy = y == b.end() ? "(not given)" : y->second;
+      if (vx != vy) out.push_back({key, vx, vy});
+    }
+    return out;
+  }
+  const auto a = sample_values(old), b = sample_values(after);
+  for (std::size_t k = 0; k < a.size(); ++k)
+    if (a[k].second != b[k].second) out.push_back({a[k].first, a[k].second, b[k].second});
+  return out;
 }
 
 }  // namespace sandcell::triaxial

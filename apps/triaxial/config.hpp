@@ -74,6 +74,7 @@ struct OutputConfig {
   double checkpoint_minutes = 10.0;       // wall minutes between checkpoints (0: by steps only)
   std::uint64_t flush_interval = 10;      // series rows between flushes of the results file
   bool plot = true;                       // PNG of q and eps_v vs eps_1 per test (python3 + matplotlib)
+  double max_size_gib = 64.0;             // GiB, largest estimated size of the run's results files (refused above)
 };
 
 /// [watch]: the stress-path watchdog of the shearing stage (systems/path_watch.hpp). `start` is
@@ -109,6 +110,19 @@ Config parse_config(const std::string& text, const std::string& source);
 /// one only included; keys a resume may change without changing what was computed (`safe`:
 /// output.*, tests.*, shear.max_axial_strain) are left out unless `include_safe`.
 std::vector<std::string> changed_keys(const std::string& before, const std::string& after, bool include_safe = false);
+
+/// A key whose effective value differs between two configs, with both values as text.
+struct KeyChange {
+  std::string key;     // "section.key"
+  std::string before;  // the value in the first config (e.g. the one a sample was prepared with)
+  std::string after;   // the value in the second
+};
+
+/// The keys that shape a prepared sample ([sample], material density, young, poisson and
+/// restitution, [contact], the preparation's time step and [prepare] but max_steps) whose
+/// effective values differ between `before` (the config text a sample was prepared with) and
+/// `after`. A `before` that no longer parses is compared key by key as written.
+std::vector<KeyChange> sample_changes(const std::string& before, const Config& after);
 
 /// Short text name of a path ("constant_p", ...).
 const char* path_name(ShearPath path);

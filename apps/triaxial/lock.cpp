@@ -22,7 +22,8 @@ void FileLock::note_holder() {
   char host[256] = "?";
   ::gethostname(host, sizeof host - 1);
   const std::string text = "PID " + std::to_string(::getpid()) + " on " + host + "\n";
-  if (::ftruncate(fd_, 0) == 0 && ::pwrite(fd_, text.data(), text.size(), 0) < 0) {
+  // Written over the last holder's note, then cut to length, so that a reader never finds it empty.
+  if (::pwrite(fd_, text.data(), text.size(), 0) < 0 || ::ftruncate(fd_, static_cast<off_t>(text.size())) != 0) {
     // The note is for messages only; a lock without it still protects.
   }
 }

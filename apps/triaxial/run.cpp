@@ -120,6 +120,17 @@ struct Interrupted : std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
+// A job whose lock another process holds (the same --task run twice): bad input, not a failed test.
+struct InUse : std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
+
+// The message of a job found in use: the job, its lock file and the holder's PID and host.
+std::string in_use_message(const fs::path& lock, const std::string& job) {
+  return job + " is in use: " + lock.string() + " is held by " + FileLock::holder(lock) +
+         "; not started twice; allowed: wait for it to end, or run another task";
+}
+
 // Everything derived from the config before anything runs.
 struct Plan {
   Config config;
@@ -146,6 +157,8 @@ struct Plan {
   int job_threads = 1;      // threads of one test (the budget split between `parallel` tests)
   int prepare_threads = 1;  // threads of one preparation (all of them when chained ones run one by one)
   Partition partition = Partition::adaptive;  // --thread-partition
+  double output_bytes = 0.0;                  // estimated size of the run's results files (estimate_output)
+  std::string output_note;                    // the estimate, for the warning above 1 GiB ("" below)
 };
 
 std::string p0_tag(double p0) { return "p0_" + num(p0 / 1e3, "%g") + "kPa"; }
@@ -1088,9 +1101,8 @@ void ShearRun::plot() const {
 void Runner::shear(const TestSpec& test, Summary& summary) {
   summary.name = test.name;
   FileLock job;
-  if (!job.try_lock(plan_.out / ".locks" / (test.name + ".lock"), FileLock::Mode::exclusive))
-    throw std::runtime_error("running in another process (" +
-                             FileLock::holder(plan_.out / ".locks" / (test.name + ".lock")) + "); not started twice");
+  const fs::path lock = plan_.out / ".locks" / (test.name + ".lock");
+  if (!job.try_lock(lock, FileLock::Mode::exclusive)) throw InUse(in_use_message(lock, "test " + test.name));
   ShearRun run(plan_, log_, test, summary);
   if (!run.open(*this, sample_path(test.p0))) return;  // complete in an earlier run
   run.run();
@@ -1259,6 +1271,87 @@ void check_run_lengths(const Plan& plan, double max_strain) {
   }
 }
 
+// At most 1e-3 of strain a step (the bound of a servo update, check_run_lengths): faster, the cell
+// outruns the contacts within a step. Checked before the cell width, which a too fast strain path
+// also breaks (1e308 1/s was blamed on shear.steps). Throws ConfigError naming the rate's key.
+void check_strain_per_step(const Plan& plan) {
+  constexpr double k_max_strain_per_step = 1e-3;
+  const Config& config = plan.config;
+  const double dt = plan.base.dt;
+  const std::string allowed = ": allowed: at most " + num(k_max_strain_per_step) +
+                              " of strain a step (at dt = " + num(dt) + " s: a rate up to " +
+                              num(k_max_strain_per_step / dt, "%.3g") + " 1/s)";
+  for (const TestSpec& t : config.tests) {
+    if (t.path == ShearPath::strain) {
+      for (int a = 0; a < 3; ++a)
+        if (std::abs(config.shear.strain_rates[a]) * dt > k_max_strain_per_step)
+          throw ConfigError(config.source + ": shear.strain_rates[" + std::to_string(a) +
+                            "] = " + num(config.shear.strain_rates[a]) + " 1/s" + allowed);
+    } else if (const double rate = axial_rate(plan, t.p0); rate * dt > k_max_strain_per_step) {
+      const std::string key = config.shear.inertial_number > 0.0
+                                  ? "shear.inertial_number = " + num(config.shear.inertial_number) + " (" + num(rate) +
+                                        " 1/s at p0 = " + num(t.p0) + " Pa)"
+                                  : "shear.strain_rate = " + num(rate) + " 1/s";
+      throw ConfigError(config.source + ": " + key + allowed);
+    }
+  }
+}
+
+// The size of the results files, estimated before anything runs (measured: 300 and 1,200 spheres,
+// a snapshot every 10 steps, within 5 % above): a snapshot is 14 doubles a sphere
+// (ResultsFile::write_snapshot) and ~4 KiB of HDF5 headers (2.2 KiB) and XDMF entry (1.6 KiB); a
+// series row 44 doubles; a file ~1 MiB of first chunks (32 KiB for each of ~27 datasets). A test
+// runs to max_axial_strain (+ ramp_strain for the ramp) at its rate at p0 (shear.steps on path
+// "strain"), an upper bound with stop_at_critical; a preparation at least the shrink of its cloud
+// at prepare.max_rate. Above output.max_size_gib the run is refused naming the interval that
+// costs most; above 1 GiB it is warned about at the start. Throws ConfigError.
+void estimate_output(Plan& plan, std::size_t spheres, double max_strain) {
+  constexpr double k_snapshot_sphere = 14 * 8, k_snapshot_header = 4096, k_row = 44 * 8, k_file = 1 << 20;
+  constexpr double k_warn = double(1 << 30);  // 1 GiB
+  const Config& config = plan.config;
+  const OutputConfig& o = config.output;
+  double snapshot_bytes = 0.0, row_bytes = 0.0, longest = 0.0;  // longest: steps of the longest test
+  for (const TestSpec& t : config.tests) {
+    const double steps = t.path == ShearPath::strain
+                             ? double(config.shear.steps)
+                             : (max_strain + config.shear.ramp_strain) / (axial_rate(plan, t.p0) * plan.base.dt);
+    longest = std::max(longest, steps);
+    const double snapshots = 2.0 + (o.snapshot_interval > 0 ? std::floor(steps / double(o.snapshot_interval)) : 0.0);
+    snapshot_bytes += snapshots * (k_snapshot_sphere * double(spheres) + k_snapshot_header);
+    row_bytes += k_file + (2.0 + std::floor(steps / double(o.series_interval))) * k_row;
+  }
+  const double phi0 = plan.from_file ? 0.3 : config.sample.generation.solid_fraction;
+  for (double p0 : plan.p0) {
+    const double steps =
+        plan.chained_from(p0) > 0.0 ? 0.0 : std::log(0.64 / phi0) / 3.0 / (config.prepare.max_rate * plan.prepare_dt);
+    snapshot_bytes += k_snapshot_sphere * double(spheres) + k_snapshot_header;
+    row_bytes += k_file + (1.0 + std::floor(steps / double(o.series_interval))) * k_row;
+  }
+  plan.output_bytes = snapshot_bytes + row_bytes;
+  const bool snapshots = snapshot_bytes >= row_bytes;
+  const std::string key = snapshots ? "output.snapshot_interval = " + std::to_string(o.snapshot_interval)
+                                    : "output.series_interval = " + std::to_string(o.series_interval);
+  const std::string gib = num(plan.output_bytes / k_warn, "%.3g") + " GiB";
+  const std::string what = std::to_string(config.tests.size()) + " test(s) x " + num(longest, "%.3g") + " steps x " +
+                           std::to_string(spheres) + " spheres";
+  if (plan.output_bytes > o.max_size_gib * k_warn) {
+    // The interval that gives ~100 snapshots (~1000 rows) a test, when that is a larger one.
+    const double interval = std::ceil(longest / (snapshots ? 100.0 : 1000.0));
+    const double now = double(snapshots ? o.snapshot_interval : o.series_interval);
+    if ((snapshots && o.snapshot_interval == 0) || interval <= now)  // no interval to blame: the limit
+      throw ConfigError(config.source + ": output.max_size_gib = " + num(o.max_size_gib) + ": below the ~" + gib +
+                        " of results the output intervals as set write (estimated: " + what +
+                        "); allowed: a larger output.max_size_gib");
+    throw ConfigError(config.source + ": " + key + ": ~" + gib + " of results (estimated: " + what +
+                      "); allowed: <= output.max_size_gib = " + num(o.max_size_gib) + " GiB: raise the interval to " +
+                      num(interval, "%.0f") + " (~" + (snapshots ? "100 snapshots" : "1000 rows") +
+                      " a test) or the limit");
+  }
+  if (plan.output_bytes > k_warn)
+    plan.output_note = "~" + gib + " of results (estimated: " + what + ", " + key +
+                       "), above 1 GiB; refused above output.max_size_gib = " + num(o.max_size_gib) + " GiB";
+}
+
 Plan make_plan(Config config_in, const Options& options) {
   Plan plan;
   plan.options = options;
@@ -1274,11 +1367,13 @@ Plan make_plan(Config config_in, const Options& options) {
   }
   derive_model(plan);
   const double max_strain = options.max_axial_strain > 0.0 ? options.max_axial_strain : config.shear.max_axial_strain;
+  check_strain_per_step(plan);
   check_cell_width(plan, diameters, max_strain);
   for (const TestSpec& t : config.tests)
     if (std::find(plan.p0.begin(), plan.p0.end(), t.p0) == plan.p0.end()) plan.p0.push_back(t.p0);
   if (config.prepare.chain) std::sort(plan.p0.begin(), plan.p0.end());
   check_run_lengths(plan, max_strain);
+  estimate_output(plan, diameters.size(), max_strain);
   // Servo settings are checked here, before anything is written.
   try {
     validate(prepare_model(plan, plan.p0.front()).servo);
@@ -1431,8 +1526,8 @@ class Campaign {
   /// (other tasks' finished samples and tests), merged under a lock.
   void write_indices();
   int failures() const { return failures_; }
-  /// 0 done, 1 a job failed, 3 stopped (a signal or --stop-after).
-  int exit_code() const { return failures_ ? 1 : interrupted_ ? 3 : 0; }
+  /// 0 done, 1 a job failed, 2 a job in use by another process, 3 stopped (a signal or --stop-after).
+  int exit_code() const { return failures_ ? 1 : in_use_ ? 2 : interrupted_ ? 3 : 0; }
 
  private:
   void failed(const std::string& what, const std::exception& e);
@@ -1446,7 +1541,7 @@ class Campaign {
   Runner runner_;
   std::vector<Summary> prep_, tests_;
   std::vector<char> prepared_;
-  int failures_ = 0, interrupted_ = 0;
+  int failures_ = 0, interrupted_ = 0, in_use_ = 0;
   std::mutex failure_mutex_;
 };
 
@@ -1456,6 +1551,11 @@ void Campaign::failed(const std::string& what, const std::exception& e) {
   if (dynamic_cast<const Interrupted*>(&e)) {
     ++interrupted_;
     log_.line(std::string(e.what()) + "; continue with --resume");
+    return;
+  }
+  if (dynamic_cast<const InUse*>(&e)) {  // another process runs it: what the directory says goes in the index
+    ++in_use_;
+    log_.line("triaxial: " + std::string(e.what()));
     return;
   }
   ++failures_;
@@ -1520,7 +1620,9 @@ void Campaign::shear_test(std::size_t k) {
       ++failures_;
     }
   } catch (const std::exception& e) {
-    tests_[k].status = dynamic_cast<const Interrupted*>(&e) ? "interrupted" : "failed";
+    tests_[k].status = dynamic_cast<const Interrupted*>(&e) ? "interrupted"
+                       : dynamic_cast<const InUse*>(&e)     ? "in use"
+                                                            : "failed";
     failed(t.name, e);
   }
 }
@@ -1537,7 +1639,8 @@ void Campaign::write_indices() {
           prep_[k].name = "prepare-" + p0_tag(plan_.p0[k]);
       }
     for (std::size_t k = 0; k < tests_.size(); ++k)
-      if (!run_test_[k]) tests_[k] = runner_.test_summary_on_disk(plan_.config.tests[k]);
+      if (!run_test_[k] || tests_[k].status == "in use")
+        tests_[k] = runner_.test_summary_on_disk(plan_.config.tests[k]);
     write_index(plan_, prep_, tests_);
   } catch (const std::exception& e) {
     failed("index.csv", e);
@@ -1704,6 +1807,81 @@ static int slurm_main(int argc, const char* const* argv, std::ostream& out, std:
   return submit_slurm_scripts(c, out, err);
 }
 
+// --task: a selected job whose lock another process holds (the same task run twice at once) is
+// refused before anything runs or is removed. Each lock is taken and released; a job another
+// process starts after this probe is caught when its own lock is taken (InUse).
+static int check_jobs_free(const Plan& plan, const std::vector<char>& run_prep, const std::vector<char>& run_test,
+                           std::ostream& err) {
+  std::vector<std::pair<std::string, std::string>> jobs;  // (lock file name, job)
+  for (std::size_t k = 0; k < plan.p0.size(); ++k)
+    if (run_prep[k]) jobs.emplace_back("prepare-" + p0_tag(plan.p0[k]), "preparation prepare-" + p0_tag(plan.p0[k]));
+  for (std::size_t k = 0; k < plan.config.tests.size(); ++k)
+    if (run_test[k]) jobs.emplace_back(plan.config.tests[k].name, "test " + plan.config.tests[k].name);
+  for (const auto& [name, job] : jobs) {
+    const fs::path lock = plan.out / ".locks" / (name + ".lock");
+    FileLock probe;
+    try {
+      if (probe.try_lock(lock, FileLock::Mode::exclusive)) continue;
+    } catch (const std::exception& e) {
+      err << "triaxial: " << one_line(e.what()) << '\n';
+      return 1;
+    }
+    err << "triaxial: --task: " << one_line(in_use_message(lock, job)) << '\n';
+    return 2;
+  }
+  return 0;
+}
+
+// --resume and --task shear the samples they find in --out: one prepared with other values of the
+// keys that shape a sample (a copied sample, an earlier config) is refused, naming the first key
+// and both values, unless --allow-change names every such key. `replaced`: the files --overwrite
+// removes (their samples are prepared again). A sample that cannot be read is left to the job,
+// which fails naming it (exit 1).
+static int check_samples(const Plan& plan, const Options& options, const std::vector<fs::path>& replaced,
+                         std::ostream& err) {
+  for (double p0 : plan.p0) {
+    const fs::path sample = plan.out / ("sample-" + p0_tag(p0) + ".h5");
+    if (!fs::exists(sample) ||
+        (options.overwrite && std::find(replaced.begin(), replaced.end(), sample) != replaced.end()))
+      continue;
+    CheckpointExtra extra;
+    std::size_t count = 0;
+    try {
+      count = read_checkpoint(sample, &extra).particles.size();
+    } catch (const std::exception&) {
+      continue;
+    }
+    std::vector<KeyChange> changes;
+    if (const auto it = extra.strings.find("config"); it != extra.strings.end()) {
+      try {
+        changes = sample_changes(it->second, plan.config);
+      } catch (const std::exception& e) {
+        err << "triaxial: " << sample.string() << ": cannot read the config it was prepared with ("
+            << one_line(e.what()) << ")\n";
+        return 1;
+      }
+    } else if (!plan.from_file && count != plan.config.sample.generation.count) {  // a sample without its config
+      changes.push_back({"sample.count", std::to_string(count), std::to_string(plan.config.sample.generation.count)});
+    }
+    std::vector<KeyChange> refused;
+    for (const KeyChange& c : changes)
+      if (std::find(options.allow_change.begin(), options.allow_change.end(), c.key) == options.allow_change.end())
+        refused.push_back(c);
+    if (refused.empty()) continue;
+    std::string keys;
+    for (const KeyChange& c : refused) keys += (keys.empty() ? "" : " ") + c.key;
+    const KeyChange& c = refused.front();
+    err << "triaxial: "
+        << one_line(sample.string() + " was prepared with " + c.key + " = " + c.before + ", not " + c.after +
+                    (refused.size() > 1 ? " (differing too: " + keys.substr(c.key.size() + 1) + ")" : "") +
+                    "; allowed: the sample's values, another --out, or --allow-change " + keys +
+                    " to shear it as it is")
+        << '\n';
+    return 2;
+  }
+  return 0;
+}
+
 // Makes the output directory this run's: refuses to replace an earlier run's files unless asked,
 // takes the directory's lock (held in `dir_lock` for the run), checks a resumed run's config
 // against the one it was made with, applies --overwrite and records the config. Returns 0, or
@@ -1772,6 +1950,10 @@ static int claim_directory(const Plan& plan, const Options& options, bool select
       return 2;
     }
   }
+  if (selected)
+    if (const int code = check_jobs_free(plan, run_prep, run_test, err); code != 0) return code;
+  if (options.resume || selected)
+    if (const int code = check_samples(plan, options, files, err); code != 0) return code;
   if (options.overwrite)
     for (const fs::path& f : files) fs::remove(f, ec);
   try {
@@ -1801,6 +1983,7 @@ static void log_campaign_start(Log& log, const Plan& plan, const Options& option
   if (plan.config.prepare.dt_fraction > 0.5)
     log.line("warning: prepare.dt_fraction = " + num(plan.config.prepare.dt_fraction) +
              " > 0.5 of the Rayleigh time: contact collisions resolved by few steps");
+  if (!plan.output_note.empty()) log.line("warning: output: " + plan.output_note);
 }
 
 // Runs the selected preparations and tests (all of a whole run) and writes the campaign's index.
@@ -1869,8 +2052,16 @@ static void add_run_options(CLI::App& app, CommandLine& cl) {
   app.add_flag("--print-default", cl.print_default, "print the embedded default configuration and exit");
   app.add_flag("--check", cl.check_only,
                "check the configuration (and plan the campaign) and exit; nothing is written");
+  // Checked as written: CLI11 would read -1 into the unsigned count as 2^64 - 1 (never stops).
   app.add_option("--stop-after", options.stop_after,
-                 "stop every job after N steps with a checkpoint, as if killed (to test --resume)");
+                 "stop every job after N steps with a checkpoint, as if killed (to test --resume)")
+      ->check(CLI::Validator(
+          [](std::string& text) {
+            const bool digits =
+                !text.empty() && text.size() <= 19 && text.find_first_not_of("0123456789") == std::string::npos;
+            return digits && std::stoull(text) >= 1 ? std::string() : text + ": allowed: an integer >= 1 (steps)";
+          },
+          "N >= 1"));
 }
 
 // Parses the command line of a run into `cl`. Returns the exit code when the process ends here
@@ -1895,6 +2086,15 @@ static std::optional<int> parse_command_line(int argc, const char* const* argv, 
 static int check_options(const Options& options, std::ostream& err) {
   if (options.resume && options.overwrite) {
     err << "triaxial: --resume and --overwrite exclude each other\n";
+    return 2;
+  }
+  // A setting that would have no effect is refused: --allow-change lets a resumed run's config differ
+  // from the one it was made with, and only --resume and --task resume one.
+  if (!options.allow_change.empty() && !options.resume && options.task_specs.empty()) {
+    err << "triaxial: --allow-change " << options.allow_change.front()
+        << (options.allow_change.size() > 1 ? " ..." : "")
+        << ": has no effect without --resume or --task (it lets their config differ from the run's); allowed: add "
+           "--resume, or leave it out\n";
     return 2;
   }
   if (std::isnan(options.max_axial_strain)) {
@@ -1999,7 +2199,9 @@ int triaxial_main(int argc, const char* const* argv, std::ostream& out, std::ost
   }
   if (cl.check_only) {
     out << "triaxial: " << plan.config.source << ": valid: " << plan.config.tests.size() << " test(s), "
-        << plan.p0.size() << " sample(s), dt = " << num(plan.base.dt) << " s\n";
+        << plan.p0.size() << " sample(s), dt = " << num(plan.base.dt) << " s, results ~"
+        << num(plan.output_bytes / double(1 << 30), "%.3g") << " GiB (estimated)\n";
+    if (!plan.output_note.empty()) out << "warning: output: " << plan.output_note << '\n';
     return 0;
   }
   plan.out = output_directory(options);

@@ -68,6 +68,15 @@ r = subprocess.run([triaxial, "study", config, "--preset", "smoke", "--axes", "d
                     "--out", fresh], capture_output=True, text=True)
 assert r.returncode == 2 and "--tolerance" in r.stderr and "res, e, d" in r.stderr, (r.returncode, r.stderr)
 assert not os.path.exists(fresh), "a study with no tolerance to judge by created its folder"
+# Every option is checked before anything runs: a negative or NaN --window (the residual window, in
+# axial strain) and a --threads the app would refuse, each one line naming it, no folder created.
+for option, value in (("--window", "-1"), ("--window", "nan"), ("--threads", "0"), ("--threads", "1025"),
+                      ("--triaxial", "/nonexistent/triaxial")):
+    r = subprocess.run([triaxial, "study", config, "--preset", "smoke", option, value, "--out", fresh],
+                       capture_output=True, text=True)
+    assert r.returncode == 2 and f"{option} = {value}" in r.stderr and len(r.stderr.splitlines()) == 1, \
+        (option, value, r.returncode, r.stdout, r.stderr)
+    assert not os.path.exists(fresh), f"study {option} {value} created its folder before refusing the option"
 
 # The size preset: N x seeds at one setting, every sample prepared on its own; the largest N with
 # its first seed only (preset largest_seeds).

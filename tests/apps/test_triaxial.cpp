@@ -24,6 +24,7 @@
 #include <sstream>
 #include <optional>
 #include <string>
+#include <thread>
 #include <vector>
 
 using namespace sandcell;
@@ -129,6 +130,9 @@ TEST_CASE("triaxial: each class of bad input exits 2 naming the key, and clobber
     c.insert(c.find(head) + head.size(), line + "\n");
     return c;
   };
+  const auto replaced = [](std::string c, const std::string& from, const std::string& to) {
+    return c.replace(c.find(from), from.size(), to);
+  };
   const Case cases[] = {
       {"syntax", base + "[output\n", "TOML syntax error"},
       {"unknown key", with("material", "yuong = 1e9"), "material.yuong"},
@@ -179,6 +183,27 @@ TEST_CASE("triaxial: each class of bad input exits 2 naming the key, and clobber
       {"neither an axial rate nor an inertial number",
        std::string(base).replace(base.find("strain_rate = 2.0"), 17, ""),
        "shear.strain_rate and shear.inertial_number: neither is given"},
+      // Found by the reliability audit (issue 42): each was accepted, or blamed another key.
+      // stop_at_critical tests critical state only after window + 0.05 of strain (critical.hpp).
+      {"a critical window with no room before the end", with("shear", "stop_at_critical = true"),
+       "shear.critical_window = 0.05 with shear.max_axial_strain = 0.03: shear.stop_at_critical"},
+      {"a density that makes dt vanish", with("material", "density = 1e-300"),
+       "material.density = 1e-300: must be in [1, 1e10] kg/m^3"},
+      {"a strain path rate of 1e308",
+       replaced(replaced(base, "strain_rate = 2.0", "strain_rates = [1e308, 0, 0]\nsteps = 100"),
+                "path = \"constant_p\"", "path = \"strain\""),
+       "shear.strain_rates[0] = 1e+308: must be in [-1e6, 1e6] 1/s"},
+      // 1e-3 of strain a step at most (the servo update's bound); dt = 4.46e-6 s here.
+      {"an axial rate beyond 1e-3 of strain a step",
+       std::string(base).replace(base.find("strain_rate = 2.0"), 17, "strain_rate = 1e308"),
+       "shear.strain_rate = 1e+308 1/s: allowed: at most 0.001 of strain a step"},
+      // A snapshot every step: 3,368 snapshots of 300 spheres x (112 B + 4 KiB) ~ 0.12 GiB, above a
+      // limit of 0.05 GiB (the default limit, 64 GiB, is checked below on the embedded default).
+      {"snapshots above output.max_size_gib", with("output", "snapshot_interval = 1\nmax_size_gib = 0.05"),
+       "output.snapshot_interval = 1: ~0.12 GiB of results (estimated: 1 test(s) x 3.37e+03 steps x 300 spheres); "
+       "allowed: <= output.max_size_gib = 0.05 GiB: raise the interval to 34"},
+      {"a size limit below what the intervals as set write", with("output", "max_size_gib = 1e-6"),
+       "output.max_size_gib = 1e-06: below the ~"},
   };
   for (const Case& c : cases) {
     const std::string what = c.what;
@@ -219,6 +244,19 @@ TEST_CASE("triaxial: each class of bad input exits 2 naming the key, and clobber
   const Result long_out = run({"--out", std::string(5000, 'o')});
   CHECK(long_out.code == 2);
   CHECK(long_out.err.find("--out = ooo") != std::string::npos);
+  CHECK(!fs::exists(dir / "x"));
+  write(dir / "good.toml", base);
+  // A setting that would have no effect: --allow-change without --resume or --task; --stop-after
+  // below 1 (CLI11 read -1 into the unsigned count as 2^64 - 1, a run that never stops).
+  const Result allow =
+      run({(dir / "good.toml").string(), "--out", (dir / "x").string(), "--allow-change", "sample.count"});
+  CHECK(allow.code == 2);
+  CHECK(allow.err.find("--allow-change sample.count: has no effect without --resume or --task") != std::string::npos);
+  for (const char* n : {"-1", "0"}) {
+    const Result stop = run({(dir / "good.toml").string(), "--out", (dir / "x").string(), "--stop-after", n});
+    CHECK(stop.code == 2);
+    CHECK(stop.err.find(std::string("--stop-after: ") + n + ": allowed: an integer >= 1") != std::string::npos);
+  }
   CHECK(!fs::exists(dir / "x"));
   const Result t = run({"--threads", "0"});
   CHECK(t.code == 2);
@@ -641,6 +679,171 @@ TEST_CASE("triaxial: --resume with a config whose physics changed is refused, li
   const Result ok = run({(dir / "safe.toml").string(), "--out", out, "--resume"});
   INFO(ok.err);
   CHECK(ok.code == 0);
+  fs::remove_all(dir);
+}
+
+TEST_CASE(
+    "triaxial: the results' size is estimated before the run: refused above output.max_size_gib, warned above 1 GiB") {
+  const fs::path dir = fresh_dir("output_size");
+  // The embedded default (2,000 spheres to 20 % at dt = 5.3e-7 s: 3.75e5 steps) with a snapshot
+  // every step: ~80 GiB, above the default limit of 64 GiB. Refused, nothing written.
+  std::string every = triaxial::k_default_config;
+  every.replace(every.find("series_interval = 1000"), 22, "series_interval = 1000\nsnapshot_interval = 1");
+  write(dir / "every.toml", every);
+  const Result r = run({(dir / "every.toml").string(), "--out", (dir / "out").string()});
+  INFO(r.err);
+  CHECK(r.code == 2);
+  CHECK(r.err.find(
+            "output.snapshot_interval = 1: ~79.8 GiB of results (estimated: 1 test(s) x 3.75e+05 steps x 2000 "
+            "spheres); allowed: <= output.max_size_gib = 64 GiB: raise the interval to 3755 (~100 snapshots a test) or "
+            "the limit") != std::string::npos);
+  CHECK(!fs::exists(dir / "out"));
+  // The audit's case, 200 spheres to 3 % with a snapshot every step (1.4 GB written): under the
+  // limit, so it runs, with a warning; the default config stays quiet.
+  write(
+      dir / "audit.toml",
+      "[sample]\ncount = 200\n[shear]\nstrain_rate = 1.0\nmax_axial_strain = 0.03\n[output]\nsnapshot_interval = 1\n");
+  const Result audit = run({(dir / "audit.toml").string(), "--check"});
+  CHECK(audit.code == 0);
+  CHECK(audit.out.find("warning: output: ~1.39 GiB of results (estimated: 1 test(s) x 5.63e+04 steps x 200 spheres, "
+                       "output.snapshot_interval = 1), above 1 GiB") != std::string::npos);
+  const Result quiet = run({"--check"});
+  CHECK(quiet.code == 0);
+  CHECK(quiet.out.find("warning") == std::string::npos);
+  // The estimate against the files a run writes (the test's and the preparation's results and
+  // XDMF), with a snapshot every 10 steps: 337 snapshots of 300 spheres. It rounds each snapshot's
+  // headers up to 4 KiB (measured 3.8) and a file's start up to 1 MiB (measured 0.95): above by
+  // 5 % here, by at most 15 % (the files of a run with no interval snapshots).
+  std::string snapshots = k_small;
+  snapshots.replace(snapshots.find("series_interval = 100"), 21, "series_interval = 100\nsnapshot_interval = 10");
+  write(dir / "snapshots.toml", snapshots);
+  const Result check = run({(dir / "snapshots.toml").string(), "--check"});
+  REQUIRE(check.code == 0);
+  const std::size_t at = check.out.find("results ~");
+  REQUIRE(at != std::string::npos);
+  const double estimate = std::stod(check.out.substr(at + 9)) * double(1 << 30);
+  REQUIRE(run({(dir / "snapshots.toml").string(), "--out", (dir / "run").string()}).code == 0);
+  double written = 0.0;
+  for (const char* f :
+       {"p-b0.50-p0_100kPa.h5", "p-b0.50-p0_100kPa.xdmf", "prepare-p0_100kPa.h5", "prepare-p0_100kPa.xdmf"})
+    written += double(fs::file_size(dir / "run" / f));
+  MESSAGE("estimated ", estimate, " B, written ", written, " B");
+  CHECK(estimate >= written);
+  CHECK(estimate <= 1.15 * written);
+  fs::remove_all(dir);
+}
+
+TEST_CASE(
+    "triaxial: --resume or --task refuses a sample prepared with other sample keys, naming the key and both values") {
+  // Before: a directory holding only a copied sample (as `triaxial study` makes them) was resumed
+  // with sample.count changed; the old sample was sheared and the new count recorded.
+  const fs::path dir = fresh_dir("sample_keys");
+  write(dir / "run.toml", k_small);
+  REQUIRE(run({(dir / "run.toml").string(), "--out", (dir / "a").string(), "--prepare-only"}).code == 0);
+  const std::string sample = "sample-p0_100kPa.h5";
+  const std::string prepared = read(dir / "a" / sample);
+  const auto copied = [&](const std::string& name) {
+    fs::create_directories(dir / name);
+    fs::copy_file(dir / "a" / sample, dir / name / sample);
+    return (dir / name).string();
+  };
+  const auto config = [&](const std::string& name, const std::string& from, const std::string& to) {
+    std::string c = k_small;
+    c.replace(c.find(from), from.size(), to);
+    write(dir / name, c);
+    return (dir / name).string();
+  };
+  const std::string count = config("count.toml", "count = 300", "count = 200");
+  const std::string out = copied("b");
+  const Result r = run({count, "--out", out, "--resume"});
+  INFO(r.err);
+  CHECK(r.code == 2);
+  CHECK(r.err.find(sample + " was prepared with sample.count = 300, not 200") != std::string::npos);
+  CHECK(r.err.find("--allow-change sample.count") != std::string::npos);
+  CHECK(std::count(r.err.begin(), r.err.end(), '\n') == 1);
+  CHECK(read(dir / "b" / sample) == prepared);  // nothing lost or clobbered, nothing sheared
+  CHECK(!fs::exists(dir / "b" / "index.csv"));
+  CHECK(!fs::exists(dir / "b" / "p-b0.50-p0_100kPa.h5"));
+  // The preparation's step (time.dt_fraction when prepare.dt_fraction is not given) and the
+  // restitution shape the sample too: the first is named, the other listed.
+  std::string both = k_small + "[time]\ndt_fraction = 0.1\n";
+  both.replace(both.find("young = 1.0e9"), 13, "young = 1.0e9\nrestitution = 0.9");
+  write(dir / "both.toml", both);
+  const Result r2 = run({(dir / "both.toml").string(), "--out", out, "--resume"});
+  INFO(r2.err);
+  CHECK(r2.code == 2);
+  CHECK(r2.err.find("was prepared with material.restitution = 0.5") != std::string::npos);
+  CHECK(r2.err.find("(differing too: prepare.dt_fraction)") != std::string::npos);
+  // A run of selected tasks is checked the same way.
+  std::string campaign = k_small;
+  campaign.replace(campaign.find("b = 0.5"), 7, "b = [0.5, 1.0]");
+  campaign.replace(campaign.find("count = 300"), 11, "count = 200");
+  write(dir / "campaign.toml", campaign);
+  const Result task = run({(dir / "campaign.toml").string(), "--out", copied("c"), "--task", "2"});
+  CHECK(task.code == 2);
+  CHECK(task.err.find("was prepared with sample.count = 300") != std::string::npos);
+  CHECK(!fs::exists(dir / "c" / "p-b1.00-p0_100kPa.h5"));
+  // --allow-change names a change meant (the documented way to shear this sample as it is); a key
+  // that does not shape the sample (material.friction) needs nothing.
+  CHECK(run({count, "--out", out, "--resume", "--allow-change", "sample.count", "--stop-after", "1"}).code == 3);
+  CHECK(run({config("friction.toml", "young = 1.0e9", "young = 1.0e9\nfriction = 0.3"), "--out", copied("d"),
+             "--resume", "--stop-after", "1"})
+            .code == 3);
+  fs::remove_all(dir);
+}
+
+TEST_CASE(
+    "triaxial: the same --task run twice at once: the second exits 2 naming the job and its lock, no test failed") {
+  const fs::path dir = fresh_dir("in_use");
+  std::string campaign = k_small;
+  campaign.replace(campaign.find("b = 0.5"), 7, "b = [0.5, 1.0]");
+  write(dir / "campaign.toml", campaign);
+  const std::string c = (dir / "campaign.toml").string(), out = (dir / "out").string();
+  const std::string test = "p-b1.00-p0_100kPa";
+  const fs::path lock = dir / "out" / ".locks" / (test + ".lock");
+  // A test whose job lock another process holds (taken here as that process would hold it):
+  // refused before anything runs, the lock and the holder named.
+  fs::create_directories(lock.parent_path());
+  {
+    triaxial::FileLock held;
+    REQUIRE(held.try_lock(lock, triaxial::FileLock::Mode::exclusive));
+    const Result r = run({c, "--out", out, "--task", "2"});
+    INFO(r.err);
+    CHECK(r.code == 2);
+    CHECK(r.err.find("--task: test " + test + " is in use: " + lock.string() + " is held by PID " +
+                     std::to_string(::getpid())) != std::string::npos);
+    CHECK(std::count(r.err.begin(), r.err.end(), '\n') == 1);
+    CHECK(!fs::exists(dir / "out" / "index.csv"));
+    CHECK(!fs::exists(dir / "out" / "sample-p0_100kPa.h5"));
+  }
+  // Two runs of the task at once, as two array tasks would start: both find the lock free, one
+  // prepares the sample while the other waits for it, then the first shears and the second finds
+  // the test's lock held. The shearing (3,366 steps) takes ~0.15 s, 100 times the milliseconds the
+  // second needs to reach the lock once the sample is there.
+  // (Two threads of this process stand for the two processes: each run holds its locks on its own
+  // open files, which exclude each other as two processes' do; the run's config is recorded first,
+  // as the directory's first run would have, so that they do not both write it.)
+  fs::create_directories(dir / "out2");
+  write(dir / "out2" / ".config.toml", campaign);
+  const std::string out2 = (dir / "out2").string();
+  const std::string shorter = "p-b0.50-p0_100kPa";
+  Result first, second;
+  std::thread a([&] { first = run({c, "--out", out2, "--task", "1", "--resume", "--threads", "1"}); });
+  std::thread b([&] { second = run({c, "--out", out2, "--task", "1", "--resume", "--threads", "1"}); });
+  a.join();
+  b.join();
+  const Result& loser = first.code == 2 ? first : second;
+  const Result& winner = first.code == 2 ? second : first;
+  INFO(first.out, first.err, second.out, second.err);
+  CHECK(winner.code == 0);
+  CHECK(loser.code == 2);
+  // Found in use when its lock is taken (in the log), or already by the check before the run.
+  const std::string said = loser.out + loser.err;
+  CHECK(said.find("test " + shorter + " is in use: " + (dir / "out2" / ".locks" / (shorter + ".lock")).string() +
+                  " is held by ") != std::string::npos);
+  CHECK(said.find("failed") == std::string::npos);
+  const std::string index = read(dir / "out2" / "index.csv");
+  CHECK(index.find(shorter + ",constant_p,0.5,100000," + shorter + ".h5,done,") != std::string::npos);
   fs::remove_all(dir);
 }
 

@@ -85,6 +85,11 @@ PRESETS = {
 }
 
 
+# The keys that shape a prepared sample which the dt and e axes vary: their runs shear the
+# reference's sample as it is (`triaxial --allow-change`).
+SHARED_SAMPLE_KEYS = ("prepare.dt_fraction", "material.restitution")
+
+
 METRICS = [("peak_eta", "peak q/p"), ("res_eta", "residual q/p"), ("res_e", "residual e"),
            ("max_dilation", "max -d")]
 
@@ -209,7 +214,9 @@ def run_variant(name, cfg, args, share_sample_from=None):
         for fn in os.listdir(share_sample_from):
             if fn.startswith("sample-") and fn.endswith(".h5") and not os.path.exists(os.path.join(out, fn)):
                 shutil.copy2(os.path.join(share_sample_from, fn), os.path.join(out, fn))
-        cmd.append("--resume")
+        # The reference's sample was prepared at its own dt and restitution: sheared as it is on purpose
+        # (the app refuses a sample whose preparation differs from the config unless told).
+        cmd += ["--resume", "--allow-change", *SHARED_SAMPLE_KEYS]
     elif any(fn.endswith(".checkpoint.h5") for fn in os.listdir(out)):
         cmd.append("--resume")
     else:
@@ -413,8 +420,14 @@ def main():
     ap.add_argument("--triaxial", default=os.environ.get("SANDCELL_TRIAXIAL", "triaxial"),
                     help="the triaxial binary (default: the one that started the study)")
     args = ap.parse_args()
-    if args.threads < 1:
-        fail(f"--threads = {args.threads}: must be >= 1")
+    # Every option is checked before anything runs (a bad --window used to fail after the runs).
+    if not 1 <= args.threads <= 1024:
+        fail(f"--threads = {args.threads}: must be in [1, 1024] (the range of triaxial --threads)")
+    if not (math.isfinite(args.window) and args.window > 0.0):
+        fail(f"--window = {args.window}: must be > 0 (axial strain; values above a third of the preset's strain "
+             "are cut to it)")
+    if shutil.which(args.triaxial) is None:
+        fail(f"--triaxial = {args.triaxial}: not an executable (give the path of the triaxial binary)")
     axes = args.axes.split(",")
     for a in axes:
         if a not in ("dt", "I", "E", "e", "N", "seed"):
