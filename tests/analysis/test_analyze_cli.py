@@ -164,3 +164,56 @@ class BadInput(unittest.TestCase):
             write_results(os.path.join(d, "prepare-p0_500kPa.h5"), caricature(0.5e6, 0.0, rows=11),
                           {"stage": b"prepare"})
             self.check_error(self.run_cli(d), "no shear tests")
+
+
+class FailedTestsLeftOut(unittest.TestCase):
+    """A test that left its stress path (the app's verdict in the file, or the series itself off its
+    path in a file written before the watchdog) and a test without a verdict (still running) enter
+    no fit: listed in summary.json and report.md, absent from the fits' inputs."""
+
+    def test_failed_and_unfinished_tests_are_listed_and_not_fitted(self):
+        rng = np.random.default_rng(11)
+        with tempfile.TemporaryDirectory() as tmp:
+            run = os.path.join(tmp, "run")
+            os.makedirs(run)
+            names = []
+            for p0 in (0.5e6, 2e6, 8e6):
+                for b in (0.0, 0.5, 1.0):
+                    name = f"p-b{b:.2f}-p0_{p0 / 1e3:g}kPa"
+                    names.append(name)
+                    series = caricature(p0, b, rng=rng)
+                    attrs = {"job": name, "stage": "shear", "path": "constant_p", "b": str(b), "p0": f"{p0:g}",
+                             "config": "[tests]\n"}
+                    if name == "p-b0.50-p0_500kPa":  # the app's verdict
+                        attrs.update(status="failed", status_reason="left its stress path: rotation 6.1 deg")
+                    if name == "p-b0.00-p0_2000kPa":  # written before the watchdog, p 5 % high from 10 % on
+                        late = series["strain"][:, 0] > 0.1
+                        for k in ("p", "q"):
+                            series[k] = np.where(late, 1.05 * series[k], series[k])
+                        series["stress"] = np.where(late[:, None], 1.05 * series["stress"], series["stress"])
+                    if name == "p-b1.00-p0_8000kPa":  # of the watchdog's time, without a verdict: running
+                        series["rotation"] = np.zeros(len(series["p"]))
+                    elif "rotation" not in series and name != "p-b0.00-p0_2000kPa":
+                        series["rotation"] = np.zeros(len(series["p"]))
+                        attrs.setdefault("status", "done")
+                    write_results(os.path.join(run, name + ".h5"), series, attrs)
+            out = os.path.join(tmp, "analysis")
+            proc = subprocess.run([sys.executable, SCRIPT, run, "--out", out, "--smooth", "0.01"],
+                                  capture_output=True, text=True, timeout=120)
+            self.assertEqual(proc.returncode, 0, proc.stderr)
+            with open(os.path.join(out, "summary.json")) as fh:
+                s = json.load(fh)
+            left_out = {"p-b0.50-p0_500kPa", "p-b0.00-p0_2000kPa", "p-b1.00-p0_8000kPa"}
+            self.assertEqual(set(s["excluded"]), left_out)
+            fitted = {os.path.splitext(os.path.basename(f))[0] for f in s["inputs"]}
+            self.assertEqual(fitted, set(names) - left_out)
+            self.assertEqual(s["csl"]["n"], 6)  # the critical points of the 6 tests on their path
+            status = {t["name"]: t["status"] for t in s["path_checks"]}
+            self.assertEqual(status["p-b0.50-p0_500kPa"], "failed")
+            self.assertEqual(status["p-b0.00-p0_2000kPa"], "failed")  # judged on its series
+            self.assertEqual(status["p-b1.00-p0_8000kPa"], "unfinished")
+            report = open(os.path.join(out, "report.md")).read()
+            self.assertIn("| p-b0.50-p0_500kPa | failed |", report)
+            self.assertIn("left its stress path: p", report)
+            for name in left_out:
+                self.assertTrue(any(name in w for w in s["warnings"]), name)
