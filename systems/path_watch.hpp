@@ -14,7 +14,8 @@
 //              |tau| = sqrt(S_xy^2 + S_xz^2 + S_yz^2), where s1 - s3 >= 0.1 p
 //   shear      the largest |shear stress| / p
 //   unbalanced the window mean of the unbalanced force ratio
-// and, row by row without a window, the largest overlap / radius. A custom path (its targets are
+// and, row by row without a window, the largest overlap / radius. A window of fewer than 5 rows is
+// no mean: such a test fails as "rows" (its path cannot be judged). A custom path (its targets are
 // the function's) gets the rotation, shear, unbalanced and overlap checks only.
 // apps/analysis/sandcell_analysis/path_check.py applies the same rules to a results file.
 #include "engine/model.hpp"
@@ -53,7 +54,8 @@ struct PathRow {
 
 /// The first quantity beyond its tolerance.
 struct PathFailure {
-  std::string quantity;  // "p", "sigma3", "b", "axis 1".."axis 3", "rotation", "shear", "unbalanced", "overlap"
+  std::string quantity;  // "p", "sigma3", "b", "axis 1".."axis 3", "rotation", "shear", "unbalanced", "overlap",
+                         // "rows" (fewer than 5 rows in a window: the path cannot be judged)
   double value = 0.0;      // the error (relative, absolute or degrees, as the quantity)
   double tolerance = 0.0;
   std::uint64_t step = 0;
@@ -72,7 +74,7 @@ class PathWatch {
   PathWatch(const ServoSettings& servo, PathTolerance tolerance);
 
   /// Adds one row; returns the failure when this row is the first beyond a tolerance (later rows
-  /// after a failure return nothing and change nothing).
+  /// return nothing, but still count in the worst values).
   std::optional<PathFailure> add(const PathRow& row);
 
   const std::optional<PathFailure>& failure() const { return failure_; }
@@ -92,6 +94,7 @@ class PathWatch {
 
  private:
   enum Slot { k_path = 0, k_b, k_rotation, k_shear, k_unbalanced, k_overlap, k_slots };
+  void judge(const PathRow& row);
   void fail(const char* quantity, double value, double tolerance, const PathRow& row);
 
   ServoSettings servo_;

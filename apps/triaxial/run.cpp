@@ -949,7 +949,8 @@ void ShearRun::row() {
   append_row(*results_, world_->state(), m_, timer_.elapsed());
   if (world_->state().clock.step > 0) watch_.check(m_, world_->state().clock.step);
   const std::uint64_t step = world_->state().clock.step;
-  if (const auto failure = path_watch_.add({step, m_.strain[0], m_.stress, m_.max_overlap_ratio, m_.unbalanced})) {
+  const auto failure = path_watch_.add({step, m_.strain[0], m_.stress, m_.max_overlap_ratio, m_.unbalanced});
+  if (failure && !summary_.left_path()) {  // (a resumed watch.stop = false run keeps its first reason)
     summary_.reason = failure->message;
     log_.line(test_.name + ": failed: " + failure->message +
               (plan_.config.watch.stop ? "; stopped" : "; runs on (watch.stop = false)"));
@@ -1050,12 +1051,19 @@ void ShearRun::report_progress(std::uint64_t s, double eps1) {
 void ShearRun::finish() {
   State& st = world_->state();
   if (o_.snapshot_interval == 0 || st.clock.step % o_.snapshot_interval != 0) results_->write_snapshot(st);
+  // A test that ended before its first full window (shorter than the ramp and a window) was not
+  // judged: its errors are NaN in the file and index.csv, and the log says so.
+  const bool judged = path_watch_.rows_checked() > 0 || summary_.left_path();
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  summary_.path_error = judged ? path_watch_.worst_path() : nan;
+  summary_.b_error = judged ? path_watch_.worst_b() : nan;
+  summary_.rotation = judged ? path_watch_.worst_rotation() : nan;
   // The verdict in the file itself: analyze leaves a failed test out of every fit.
   results_->set_attribute("/", "status", summary_.left_path() ? "failed" : "done");
   results_->set_attribute("/", "status_reason", summary_.reason);
-  results_->set_attribute("/", "path_error", path_watch_.worst_path());
-  results_->set_attribute("/", "b_error", path_watch_.worst_b());
-  results_->set_attribute("/", "rotation_deg", path_watch_.worst_rotation());
+  results_->set_attribute("/", "path_error", summary_.path_error);
+  results_->set_attribute("/", "b_error", summary_.b_error);
+  results_->set_attribute("/", "rotation_deg", summary_.rotation);
   results_->close();
   CheckpointExtra extra = extras();
   extra.integers["complete"] = {1};
@@ -1070,9 +1078,10 @@ void ShearRun::finish() {
   summary_.final_strain = m_.strain[0];
   summary_.steps = st.clock.step;
   summary_.wall = timer_.elapsed();
-  summary_.path_error = path_watch_.worst_path();
-  summary_.b_error = path_watch_.worst_b();
-  summary_.rotation = path_watch_.worst_rotation();
+  if (!judged && test_.path != ShearPath::strain)
+    log_.line(test_.name + ": its stress path was not judged: it ended at eps1 = " + num(100 * m_.strain[0], "%.2f") +
+              " %, before the watchdog's first window (" + num(100 * h_.ramp_strain, "%g") + " % of ramp and " +
+              num(100 * plan_.config.watch.tolerance.window, "%g") + " %)");
   summary_.status = summary_.left_path() ? "failed" : summary_.critical ? "done (critical state)" : "done";
   log_.line(test_.name + (summary_.left_path() ? ": failed (left its stress path) at step " : ": done at step ") +
             std::to_string(st.clock.step) +

@@ -191,3 +191,23 @@ TEST_CASE("path watch: a bad tolerance is refused naming it") {
   CHECK_THROWS_WITH_AS(PathWatch(constant_p(1e6, 0.0), t), doctest::Contains("watch.window = 0"),
                        std::invalid_argument);
 }
+
+TEST_CASE("path watch: a series too coarse to judge fails as rows; a test shorter than a window is not judged") {
+  const double p0 = 1e6;
+  const Mat3 s = diag(on_path(p0, 1.0, 0.5));  // exactly on its path
+  // Rows 0.6 % of strain apart: a 1 % window holds 2 rows, fewer than the 5 a mean needs (a set
+  // inertial number of 0.1 strained 300 spheres by 2 % between rows of 50 steps).
+  PathWatch coarse(constant_p(p0, 0.5), PathTolerance{.start = 0.002});
+  std::optional<PathFailure> f;
+  for (int k = 0; k <= 20 && !f; ++k) f = coarse.add({std::uint64_t(50 * k), 0.006 * k, s, 0.01, 0.02});
+  REQUIRE(f.has_value());
+  CHECK(f->quantity == "rows");
+  CHECK(f->message.find("cannot be judged") != std::string::npos);
+  // The same rows 0.025 % apart (41 to a window) pass; to 0.5 % of strain nothing is judged.
+  PathWatch fine(constant_p(p0, 0.5), PathTolerance{.start = 0.002});
+  for (int k = 0; k <= 200; ++k) CHECK_FALSE(fine.add({std::uint64_t(k), k * k_row, s, 0.01, 0.02}).has_value());
+  CHECK(fine.rows_checked() > 100);
+  PathWatch short_test(constant_p(p0, 0.5), PathTolerance{.start = 0.002});
+  for (int k = 0; k <= 20; ++k) CHECK_FALSE(short_test.add({std::uint64_t(k), k * k_row, s, 0.01, 0.02}).has_value());
+  CHECK(short_test.rows_checked() == 0);
+}

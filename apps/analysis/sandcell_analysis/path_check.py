@@ -18,7 +18,8 @@ mean by a fraction of that. Per row, once the window is full:
   shear      the largest |shear stress| over p
   unbalanced the window mean of the unbalanced force ratio
   overlap    the row's largest overlap / radius (no window: a bound of the contact model)
-A test has left its path at the first row where one of them is beyond its tolerance.
+A test has left its path at the first row where one of them is beyond its tolerance; a window of
+fewer than 5 rows is no mean, and such a test fails as "rows" (its path cannot be judged).
 """
 import math
 
@@ -35,6 +36,7 @@ DEFAULTS = {
     "unbalanced": 1.0,
 }
 MIN_DEVIATOR = 0.1  # b and the rotation are judged where the deviator s1 - s3 >= 0.1 p
+MIN_ROWS = 5  # a window of fewer rows is no mean: the path cannot be judged ("rows")
 
 QUANTITIES = ("p", "sigma3", "b", "rotation", "shear", "unbalanced", "overlap")
 
@@ -117,8 +119,13 @@ def check(eps1, stress6, path, b_target, target, start=0.0, overlap=None, unbala
             begin = first = i
         while travel[i] - travel[first] > tol["window"]:
             first += 1
-        if travel[i] - travel[begin] < tol["window"]:
-            continue  # the window is not full yet
+        if travel[i] < start + tol["window"]:
+            continue  # the first window is not full yet
+        if i - first + 1 < MIN_ROWS:
+            if failure is None:
+                failure = dict(quantity="rows", value=float(i - first + 1), tolerance=float(MIN_ROWS), row=i,
+                               eps1=float(eps1[i]))
+            continue
         values = window_values(t[first:i + 1].mean(axis=0), path, b_target, target)
         if unbalanced is not None:
             values["unbalanced"] = float(np.mean(unbalanced[first:i + 1]))
