@@ -6,6 +6,7 @@
 #include "config.hpp"
 #include "lock.hpp"
 #include "run.hpp"
+#include "app_run.hpp"
 #include "signals.hpp"
 #include "support/affinity.hpp"
 
@@ -30,88 +31,10 @@
 using namespace sandcell;
 namespace fs = std::filesystem;
 
+using namespace app_test;
+
 namespace {
 
-struct Result {
-  int code = 0;
-  std::string out, err;
-};
-
-Result run(std::vector<std::string> args) {
-  args.insert(args.begin(), "triaxial");
-  std::vector<const char*> argv;
-  for (const std::string& a : args) argv.push_back(a.c_str());
-  std::ostringstream out, err;
-  Result r;
-  r.code = triaxial::triaxial_main(static_cast<int>(argv.size()), argv.data(), out, err);
-  r.out = out.str();
-  r.err = err.str();
-  return r;
-}
-
-fs::path fresh_dir(const std::string& name) {
-  const fs::path dir = fs::temp_directory_path() / ("sandcell_test_triaxial_" + name);
-  fs::remove_all(dir);
-  fs::create_directories(dir);
-  return dir;
-}
-
-void write(const fs::path& path, const std::string& text) { std::ofstream(path) << text; }
-std::string read(const fs::path& path) {
-  std::ifstream in(path);
-  std::ostringstream s;
-  s << in.rdbuf();
-  return s.str();
-}
-
-// A small, soft sample that prepares in seconds: 300 spheres, E = 1 GPa (dt 8x the default's),
-// p0 = 0.1 MPa.
-const std::string k_small = R"([sample]
-count = 300
-d_min = 5.0e-3
-d_max = 7.5e-3
-seed = 3
-[material]
-young = 1.0e9
-[prepare]
-max_rate = 20.0
-check_interval = 500
-[shear]
-strain_rate = 2.0
-max_axial_strain = 0.03
-[tests]
-path = "constant_p"
-b = 0.5
-p0 = 0.1e6
-[output]
-series_interval = 100
-plot = false
-)";
-
-// Reads a whole dataset of doubles with the HDF5 C API (independent of the engine's writer).
-std::vector<double> dataset(const fs::path& file, const std::string& name) {
-  std::vector<double> v;
-  const hid_t f = H5Fopen(file.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
-  REQUIRE(f >= 0);
-  const hid_t d = H5Dopen2(f, name.c_str(), H5P_DEFAULT);
-  REQUIRE(d >= 0);
-  const hid_t space = H5Dget_space(d);
-  const hssize_t n = H5Sget_simple_extent_npoints(space);
-  v.resize(static_cast<std::size_t>(n));
-  if (n > 0) REQUIRE(H5Dread(d, H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, v.data()) >= 0);
-  H5Sclose(space);
-  H5Dclose(d);
-  H5Fclose(f);
-  return v;
-}
-
-bool has_link(const fs::path& file, const std::string& name) {
-  const hid_t f = H5Fopen(file.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
-  if (f < 0) return false;
-  const bool yes = H5Lexists(f, name.c_str(), H5P_DEFAULT) > 0;
-  H5Fclose(f);
-  return yes;
-}
 
 }  // namespace
 

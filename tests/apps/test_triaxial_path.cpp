@@ -4,7 +4,7 @@
 // tests go on; b = 1 on both paths at a set inertial number (the protocol whose constant-sigma3 test
 // ran away to 2,000 p0 before the servo's cap followed the axial rate) holds its path, asserted
 // from the series with the HDF5 C API, independently of the watchdog.
-#include "run.hpp"
+#include "app_run.hpp"
 
 #include <doctest/doctest.h>
 #include <hdf5.h>
@@ -20,99 +20,14 @@
 using namespace sandcell;
 namespace fs = std::filesystem;
 
+using namespace app_test;
+
 namespace {
 
-struct Result {
-  int code = 0;
-  std::string out, err;
-};
-
-Result run_app(std::vector<std::string> args) {
-  args.insert(args.begin(), "triaxial");
-  std::vector<const char*> argv;
-  for (const std::string& a : args) argv.push_back(a.c_str());
-  std::ostringstream out, err;
-  Result r;
-  r.code = triaxial::triaxial_main(static_cast<int>(argv.size()), argv.data(), out, err);
-  r.out = out.str();
-  r.err = err.str();
-  return r;
-}
-
-fs::path fresh(const std::string& name) {
-  const fs::path dir = fs::temp_directory_path() / ("sandcell_test_triaxial_path_" + name);
-  fs::remove_all(dir);
-  fs::create_directories(dir);
-  return dir;
-}
-
-std::string slurp(const fs::path& path) {
-  std::ifstream in(path);
-  std::ostringstream s;
-  s << in.rdbuf();
-  return s.str();
-}
-
-std::vector<double> dataset(const fs::path& file, const std::string& name) {
-  const hid_t f = H5Fopen(file.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
-  REQUIRE(f >= 0);
-  const hid_t d = H5Dopen2(f, name.c_str(), H5P_DEFAULT);
-  REQUIRE(d >= 0);
-  const hid_t space = H5Dget_space(d);
-  std::vector<double> v(static_cast<std::size_t>(H5Sget_simple_extent_npoints(space)));
-  if (!v.empty()) REQUIRE(H5Dread(d, H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, v.data()) >= 0);
-  H5Sclose(space);
-  H5Dclose(d);
-  H5Fclose(f);
-  return v;
-}
-
-std::string string_attribute(const fs::path& file, const char* name) {
-  const hid_t f = H5Fopen(file.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
-  REQUIRE(f >= 0);
-  std::string value;
-  if (H5Aexists(f, name) > 0) {
-    const hid_t a = H5Aopen(f, name, H5P_DEFAULT);
-    const hid_t type = H5Aget_type(a);
-    if (H5Tis_variable_str(type) > 0) {
-      char* text = nullptr;
-      H5Aread(a, type, &text);
-      value = text ? text : "";
-      H5free_memory(text);
-    } else {
-      value.resize(H5Tget_size(type));
-      H5Aread(a, type, value.data());
-      value = value.c_str();
-    }
-    H5Tclose(type);
-    H5Aclose(a);
-  }
-  H5Fclose(f);
-  return value;
-}
-
-// 300 soft spheres (E = 1 GPa) at 0.1 MPa, sheared at 2 /s to 3 %: prepared and sheared in seconds.
-const std::string k_small = R"([sample]
-count = 300
-d_min = 5.0e-3
-d_max = 7.5e-3
-seed = 3
-[material]
-young = 1.0e9
-[prepare]
-max_rate = 20.0
-check_interval = 500
-[shear]
-strain_rate = 2.0
-max_axial_strain = 0.03
-[tests]
-path = "constant_p"
-b = 0.5
-p0 = 0.1e6
-[output]
-series_interval = 50
-plot = false
-)";
+// app_run.hpp's 300 soft spheres (E = 1 GPa) at 0.1 MPa, sheared at 2 /s to 3 %, with a row every
+// 50 steps (a 1 % window holds ~40 rows).
+const std::string k_small50 = std::string(k_small).replace(k_small.find("series_interval = 100"), 21,
+                                                           "series_interval = 50");
 
 std::string with(std::string config, const std::string& section, const std::string& line) {
   const std::string head = "[" + section + "]\n";
@@ -132,25 +47,25 @@ TEST_CASE("triaxial watch: a test made to leave its path, one per quantity, fail
   // stay where the axial compression leaves them), or a tolerance set below what any sample does
   // (a turn of 0.01 deg, an overlap of 1e-4 R, an unbalanced ratio of 1e-6), so that the quantity
   // named is the one that left its path first.
-  const std::string dead_servo = with(k_small, "shear", "gain = 1.0e-9");
+  const std::string dead_servo = with(k_small50, "shear", "gain = 1.0e-9");
   const Case cases[] = {
       {"p", dead_servo},
       {"sigma3", std::string(dead_servo).replace(dead_servo.find("\"constant_p\""), 12, "\"constant_sigma3\"")},
       {"b", with(dead_servo, "watch", "stress = 10.0")},  // p or sigma3 may not fail first
-      {"rotation", with(k_small, "watch", "rotation = 0.01")},
-      {"overlap", with(k_small, "watch", "overlap = 1.0e-4")},
-      {"unbalanced", with(k_small, "watch", "unbalanced = 1.0e-6")},
+      {"rotation", with(k_small50, "watch", "rotation = 0.01")},
+      {"overlap", with(k_small50, "watch", "overlap = 1.0e-4")},
+      {"unbalanced", with(k_small50, "watch", "unbalanced = 1.0e-6")},
   };
   for (const Case& c : cases) {
     CAPTURE(c.quantity);
-    const fs::path dir = fresh(std::string("leave_") + c.quantity);
+    const fs::path dir = fresh_dir(std::string("path_leave_") + c.quantity);
     std::ofstream(dir / "c.toml") << c.config;
-    const Result r = run_app({(dir / "c.toml").string(), "--out", (dir / "out").string(), "--threads", "2"});
+    const Result r = run({(dir / "c.toml").string(), "--out", (dir / "out").string(), "--threads", "2"});
     INFO(r.out, r.err);
     CHECK(r.code == 1);
     const std::string line = std::string("failed: left its stress path: ") + c.quantity + " ";
     CHECK(r.out.find(line) != std::string::npos);
-    const std::string index = slurp(dir / "out" / "index.csv");
+    const std::string index = read(dir / "out" / "index.csv");
     CHECK(index.find(",failed,") != std::string::npos);
     CHECK(index.find(std::string("left its stress path: ") + c.quantity + " ") != std::string::npos);
     CHECK(index.find(",done") == std::string::npos);
@@ -166,30 +81,30 @@ TEST_CASE("triaxial watch: a test made to leave its path, one per quantity, fail
 }
 
 TEST_CASE("triaxial watch: the other tests of a campaign go on, and a failed test resumes as failed") {
-  const fs::path dir = fresh("campaign");
+  const fs::path dir = fresh_dir("path_campaign");
   // The constant-p test's axes turn by more than 0.01 deg; the strain path has no stress targets
   // and only its overlap and unbalanced force are judged: it ends done.
-  std::string config = with(k_small, "watch", "rotation = 0.01");
+  std::string config = with(k_small50, "watch", "rotation = 0.01");
   config.replace(config.find("path = \"constant_p\""), 19, "path = [\"constant_p\", \"strain\"]");
   config = with(config, "shear", "strain_rates = [1.0, -0.5, -0.5]\nsteps = 400");
   std::ofstream(dir / "c.toml") << config;
   const std::vector<std::string> args = {(dir / "c.toml").string(), "--out", (dir / "out").string(), "--threads",
                                          "2"};
-  const Result r = run_app(args);
+  const Result r = run(args);
   INFO(r.out, r.err);
   CHECK(r.code == 1);
   CHECK(r.out.find("(1 failed)") != std::string::npos);
-  const std::string index = slurp(dir / "out" / "index.csv");
+  const std::string index = read(dir / "out" / "index.csv");
   CHECK(index.find("p-b0.50-p0_100kPa,constant_p,0.5,100000,p-b0.50-p0_100kPa.h5,failed,") != std::string::npos);
   CHECK(index.find("strain-p0_100kPa,strain,") != std::string::npos);
   CHECK(index.find(",done,") != std::string::npos);
   // --resume: both complete; the failed one stays failed, with its reason, and the exit stays 1.
   std::vector<std::string> again = args;
   again.push_back("--resume");
-  const Result r2 = run_app(again);
+  const Result r2 = run(again);
   INFO(r2.out, r2.err);
   CHECK(r2.code == 1);
-  const std::string index2 = slurp(dir / "out" / "index.csv");
+  const std::string index2 = read(dir / "out" / "index.csv");
   CHECK(index2.find(",failed,") != std::string::npos);
   CHECK(index2.find("left its stress path: rotation") != std::string::npos);
 }
@@ -236,9 +151,9 @@ plot = false
 )";
   // The rotation is not what this test is about: a 1,000-sphere cell's axes turn by 3-8 deg by
   // fluctuation (docs/physics.md section 6.2); the servo's targets are.
-  const fs::path dir = fresh("b1");
+  const fs::path dir = fresh_dir("path_b1");
   std::ofstream(dir / "c.toml") << config;
-  const Result r = run_app({(dir / "c.toml").string(), "--out", (dir / "out").string(), "--threads", "2"});
+  const Result r = run({(dir / "c.toml").string(), "--out", (dir / "out").string(), "--threads", "2"});
   INFO(r.out, r.err);
   REQUIRE(r.code == 0);
   for (const char* name : {"p-b1.00-p0_500kPa", "s3-b1.00-p0_500kPa"}) {
