@@ -37,6 +37,14 @@ Options (defaults)
   --min-deq R        dilatancy data need d eps_q / d eps_1 >= R (0.1)
   --dilatancy-path P path whose b = 0 tests give d0, m and whose b > 0 tests give alpha, beta
                      (default: constant_p if it has b = 0 tests, else constant_sigma3)
+  --localization DIR the <test>-localization.csv of `triaxial localization --whole`: the table of
+                     paths says which tests are banded (else "not judged")
+
+Stress paths: every test is judged by the app's watchdog rules (path_check.py, with the tolerances of
+  the file's [watch]); a test that failed (the file's status, or its series off its path) or has no
+  verdict yet (running) enters no fit, table, trend or figure, and is listed in report.md (a table of
+  paths: status, largest errors, turn of the axes, critical, banded) and summary.json (excluded,
+  path_checks, warnings).
 
 Critical state (per test)
   Over the last W of eps_1, straight lines are fitted to eta, p, e and eps_v against eps_1; the
@@ -390,15 +398,18 @@ def write_report(path, tests, res, opt, files, skipped):
         f"ratio below {PATH_DEFAULTS['unbalanced']:g}, and no overlap beyond "
         f"{PATH_DEFAULTS['overlap']:g} R. A failed or unfinished test is left out of every fit, "
         "table, trend and figure below.\n")
+    add("Banded: from `triaxial localization --whole` (`--localization DIR`: the whole test's strongest "
+        "planar mode above 3 x its shuffled share; issue 45 questions that detector), else not judged.\n")
     add("| test | status | largest p/sigma3 error (%) | largest b error | largest rotation (deg) "
-        "| largest shear / p | critical | reason |")
-    add("|---|---|---|---|---|---|---|---|")
+        "| largest shear / p | critical | banded | reason |")
+    add("|---|---|---|---|---|---|---|---|---|")
     for t in sorted(tests + res.get("excluded", []), key=lambda t: (t["path"], t["p0"], t["b_nominal"])):
         w = t["path_check"]["worst"]
         err = max(w["p"], w["sigma3"])
         add(f"| {t['name']} | {t['status']} | {_f(100 * err, '.2f')} | {_f(w['b'], '.3f')} "
             f"| {_f(w['rotation'], '.1f')} | {_f(w['shear'], '.3f')} "
-            f"| {'yes' if t['critical']['reached'] else 'no'} | {t['status_reason'] or '-'} |")
+            f"| {'yes' if t['critical']['reached'] else 'no'} | {banded(t['name'], opt.localization)} "
+            f"| {t['status_reason'] or '-'} |")
     add("")
 
     add("## 1. Tests\n")
@@ -540,6 +551,21 @@ def write_report(path, tests, res, opt, files, skipped):
         fh.write("\n".join(L) + "\n")
 
 
+def banded(name, folder):
+    """yes/no from the test's `triaxial localization --whole` CSV in folder, else "not judged"."""
+    import csv
+    from .localization import BAND_CONTRAST
+    path = os.path.join(folder, f"{name}-localization.csv") if folder else ""
+    if not path or not os.path.exists(path):
+        return "not judged"
+    with open(path, newline="") as fh:
+        rows = list(csv.DictReader(fh))
+    if not rows:
+        return "not judged"
+    whole = rows[-1]
+    return "yes" if float(whole["mode_share"]) > BAND_CONTRAST * float(whole["shuffled_share"]) else "no"
+
+
 def _jsonable(x):
     if isinstance(x, dict):
         return {str(k): _jsonable(v) for k, v in x.items()}
@@ -648,6 +674,9 @@ def parse_args(argv):
     g.add_argument("--dilatancy-path", choices=("constant_p", "constant_sigma3"), default=None,
                    help="path whose tests give d0, m (b = 0) and alpha, beta (b > 0) "
                    "(default: constant_p if it has a b = 0 test, else constant_sigma3)")
+    g.add_argument("--localization", metavar="DIR", default=None,
+                   help="the <test>-localization.csv files of `triaxial localization --whole`: the table of "
+                   "paths says which tests are banded (else: not judged)")
     opt = ap.parse_args(argv)
     if not opt.results:
         raise InputError("no results given (usage: analyze.py RESULTS... [--out DIR])")
