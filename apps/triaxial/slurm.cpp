@@ -108,13 +108,14 @@ void write_slurm_scripts(const SlurmCampaign& c) {
 
   std::ostringstream submit;
   submit << "#!/bin/bash\n"
-         << "# Submits the campaign: preparations, then the tests (afterok), then the analysis (afterok).\n"
+         << "# Submits the campaign: preparations, then the tests (afterok), then the analysis (afterany:\n"
+         << "# a test that left its stress path exits 1, and the analysis lists it and fits the others).\n"
          << "# Resubmitting after a failure is safe: every task resumes from what the directory holds.\n"
          << "set -eu\n"
          << "cd " << quote(dir.string()) << "\n"
          << "prepare=$(sbatch --parsable prepare.sbatch)\n"
          << "tests=$(sbatch --parsable --dependency=afterok:${prepare%%;*} tests.sbatch)\n"
-         << "analyze=$(sbatch --parsable --dependency=afterok:${tests%%;*} analyze.sbatch)\n"
+         << "analyze=$(sbatch --parsable --dependency=afterany:${tests%%;*} analyze.sbatch)\n"
          << "echo \"prepare ${prepare%%;*} tests ${tests%%;*} analyze ${analyze%%;*}\"\n";
   write_file(dir / "submit.sh", submit.str(), true);
 }

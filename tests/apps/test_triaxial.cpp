@@ -531,6 +531,8 @@ TEST_CASE("triaxial: --list, --task and the cluster subcommand: bad input exits 
   CHECK(tests.find("--resume --thread-partition owner --task \"$((1 + SLURM_ARRAY_TASK_ID))\"") != std::string::npos);
   CHECK(read(dir / "cluster" / "slurm" / "prepare.sbatch").find("#SBATCH --array=0-0%4") != std::string::npos);
   CHECK(read(dir / "cluster" / "slurm" / "submit.sh").find("--dependency=afterok:") != std::string::npos);
+  // the analysis runs after every test has ended, also when one left its stress path (exit 1)
+  CHECK(read(dir / "cluster" / "slurm" / "submit.sh").find("--dependency=afterany:${tests") != std::string::npos);
   CHECK(read(dir / "cluster" / "campaign.toml") == campaign);
   fs::remove_all(dir);
 }
