@@ -14,10 +14,9 @@ namespace sandcell {
 
 namespace {
 constexpr double k_min_deviator = 0.1;  // b and the rotation are judged where s1 - s3 >= 0.1 |p|
-// A window must hold this many rows to be a mean at all: the fast protocol's series hold ~40 over 1 %
-// of axial strain, the default test's ~19; a test strained by a window in 1-4 rows (a set inertial
+// PathTolerance::rows, a window's fewest rows (5): the fast protocol's series hold ~40 over 1 % of
+// axial strain, the default test's ~19; a test strained by a window in 1-4 rows (a set inertial
 // number of 0.1: 5 % of strain in 46 steps) cannot be judged, and is not passed.
-constexpr std::size_t k_min_rows = 5;
 
 std::string fmt(const char* format, double v) {
   char buf[64];
@@ -39,6 +38,7 @@ void validate(const PathTolerance& t) {
   check("start", t.start, 0.0, 2.0, "must be in [0, 2] (axial strain)");
   check("overlap", t.overlap, 1e-6, 1.0, "must be in [1e-6, 1] (overlap / radius)");
   check("unbalanced", t.unbalanced, 1e-6, 1e6, "must be in [1e-6, 1e6]");
+  check("rows", t.rows, 1, 100000, "must be an integer in [1, 1e5] (rows a window must hold)");
 }
 
 double principal_rotation_deg(const Mat3& s) {
@@ -117,16 +117,16 @@ void PathWatch::judge(const PathRow& row) {
   window_.push_back({travel_, row.stress, row.unbalanced});
   while (travel_ - window_.front().travel > tol_.window) window_.pop_front();
   if (travel_ < tol_.start + tol_.window) return;  // the first window is not full yet
-  if (window_.size() < k_min_rows) {
+  if (window_.size() < static_cast<std::size_t>(tol_.rows)) {
     if (failure_) return;
     PathFailure f;
     f.quantity = "rows";
     f.value = double(window_.size());
-    f.tolerance = double(k_min_rows);
+    f.tolerance = double(tol_.rows);
     f.step = row.step;
     f.eps1 = row.eps1;
     f.message = "the path cannot be judged: " + std::to_string(window_.size()) + " series row(s) over the last " +
-                fmt("%g %%", 100.0 * tol_.window) + " of axial strain (at least " + std::to_string(k_min_rows) +
+                fmt("%g %%", 100.0 * tol_.window) + " of axial strain (at least " + std::to_string(tol_.rows) +
                 ": lower output.series_interval or the strain rate) at step " + std::to_string(row.step) +
                 ", eps1 = " + fmt("%.2f %%", 100.0 * row.eps1);
     failure_ = f;

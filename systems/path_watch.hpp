@@ -14,8 +14,8 @@
 //              |tau| = sqrt(S_xy^2 + S_xz^2 + S_yz^2), where s1 - s3 >= 0.1 p
 //   shear      the largest |shear stress| / p
 //   unbalanced the window mean of the unbalanced force ratio
-// and, row by row without a window, the largest overlap / radius. A window of fewer than 5 rows is
-// no mean: such a test fails as "rows" (its path cannot be judged). A custom path (its targets are
+// and, row by row without a window, the largest overlap / radius. A window of fewer than `rows` rows
+// (5) is no mean: such a test fails as "rows" (its path cannot be judged). A custom path (its targets are
 // the function's) gets the rotation, shear, unbalanced and overlap checks only.
 // apps/analysis/sandcell_analysis/path_check.py applies the same rules to a results file.
 #include "engine/model.hpp"
@@ -38,6 +38,7 @@ struct PathTolerance {
   double start = 0.0;        // -, axial strain (travel) before which nothing is averaged (the ramp)
   double overlap = 0.2;      // -, largest overlap / radius, row by row
   double unbalanced = 1.0;   // -, unbalanced force ratio, window mean
+  int rows = 5;              // rows a window must hold to be a mean (fewer: the path cannot be judged)
 };
 
 /// Throws std::invalid_argument naming the tolerance (watch.<key>), its value and what is allowed.
@@ -55,7 +56,7 @@ struct PathRow {
 /// The first quantity beyond its tolerance.
 struct PathFailure {
   std::string quantity;  // "p", "sigma3", "b", "axis 1".."axis 3", "rotation", "shear", "unbalanced", "overlap",
-                         // "rows" (fewer than 5 rows in a window: the path cannot be judged)
+                         // "rows" (too few rows in a window: the path cannot be judged)
   double value = 0.0;      // the error (relative, absolute or degrees, as the quantity)
   double tolerance = 0.0;
   std::uint64_t step = 0;

@@ -592,6 +592,7 @@ void parse_watch(const toml::table& root, const std::string& source, WatchConfig
   s.number("window", t.window, 1e-6, 1.0, "must be in [1e-6, 1] (axial strain)");
   s.number("overlap", t.overlap, 1e-6, 1.0, "must be in [1e-6, 1] (overlap / radius)");
   s.number("unbalanced", t.unbalanced, 1e-6, 1e6, "must be in [1e-6, 1e6]");
+  s.integer("rows", t.rows, 1, 100000, "must be an integer in [1, 1e5] (series rows a window must hold)");
   s.boolean("stop", w.stop);
   s.check_unknown();
 }

@@ -491,6 +491,7 @@ PYBIND11_MODULE(_sandcell, m) {
       .def_readwrite("start", &PathTolerance::start)
       .def_readwrite("overlap", &PathTolerance::overlap)
       .def_readwrite("unbalanced", &PathTolerance::unbalanced)
+      .def_readwrite("rows", &PathTolerance::rows)
       .def("validate", [](const PathTolerance& t) { validate(t); });
 
   py::class_<PathWatch>(m, "PathWatch",

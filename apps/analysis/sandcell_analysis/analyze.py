@@ -706,7 +706,8 @@ def path_verdict(path):
     tol, start = {}, 0.0
     try:
         cfg = tomllib.loads(str(text)) if text else {}
-        tol = {k: float(v) for k, v in cfg.get("watch", {}).items() if k in PATH_DEFAULTS}
+        tol = {k: (int(v) if k == "rows" else float(v)) for k, v in cfg.get("watch", {}).items()
+               if k in PATH_DEFAULTS}
         start = float(cfg.get("shear", {}).get("ramp_strain", 0.0))
     except (tomllib.TOMLDecodeError, TypeError, ValueError):
         pass

@@ -19,7 +19,7 @@ mean by a fraction of that. Per row, once the window is full:
   unbalanced the window mean of the unbalanced force ratio
   overlap    the row's largest overlap / radius (no window: a bound of the contact model)
 A test has left its path at the first row where one of them is beyond its tolerance; a window of
-fewer than 5 rows is no mean, and such a test fails as "rows" (its path cannot be judged).
+fewer than `rows` (5) rows is no mean, and such a test fails as "rows" (its path cannot be judged).
 """
 import math
 
@@ -34,9 +34,9 @@ DEFAULTS = {
     "window": 0.01,
     "overlap": 0.2,
     "unbalanced": 1.0,
+    "rows": 5,
 }
 MIN_DEVIATOR = 0.1  # b and the rotation are judged where the deviator s1 - s3 >= 0.1 p
-MIN_ROWS = 5  # a window of fewer rows is no mean: the path cannot be judged ("rows")
 
 QUANTITIES = ("p", "sigma3", "b", "rotation", "shear", "unbalanced", "overlap")
 
@@ -121,9 +121,9 @@ def check(eps1, stress6, path, b_target, target, start=0.0, overlap=None, unbala
             first += 1
         if travel[i] < start + tol["window"]:
             continue  # the first window is not full yet
-        if i - first + 1 < MIN_ROWS:
+        if i - first + 1 < tol["rows"]:
             if failure is None:
-                failure = dict(quantity="rows", value=float(i - first + 1), tolerance=float(MIN_ROWS), row=i,
+                failure = dict(quantity="rows", value=float(i - first + 1), tolerance=float(tol["rows"]), row=i,
                                eps1=float(eps1[i]))
             continue
         values = window_values(t[first:i + 1].mean(axis=0), path, b_target, target)
