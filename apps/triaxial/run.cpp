@@ -463,6 +463,15 @@ struct Summary {
   double b_error = std::numeric_limits<double>::quiet_NaN();
   double rotation = std::numeric_limits<double>::quiet_NaN();
   bool left_path() const { return !reason.empty(); }
+  // The watch's largest errors; NaN when it judged no window (a test shorter than the ramp and one
+  // window, that did not fail either).
+  void set_path_errors(const PathWatch& watch) {
+    const bool judged = watch.rows_checked() > 0 || left_path();
+    const double nan = std::numeric_limits<double>::quiet_NaN();
+    path_error = judged ? watch.worst_path() : nan;
+    b_error = judged ? watch.worst_b() : nan;
+    rotation = judged ? watch.worst_rotation() : nan;
+  }
 };
 
 class Runner {
@@ -771,9 +780,7 @@ Summary Runner::test_summary(const TestSpec& test, const State& state, Checkpoin
   if (extra.doubles.count("path_watch")) {
     PathWatch watch = make_path_watch(plan_, test);
     watch.restore(extra.doubles["path_watch"]);
-    summary.path_error = watch.worst_path();
-    summary.b_error = watch.worst_b();
-    summary.rotation = watch.worst_rotation();
+    summary.set_path_errors(watch);
   }
   History history;
   history.load(extra);
@@ -1053,11 +1060,8 @@ void ShearRun::finish() {
   if (o_.snapshot_interval == 0 || st.clock.step % o_.snapshot_interval != 0) results_->write_snapshot(st);
   // A test that ended before its first full window (shorter than the ramp and a window) was not
   // judged: its errors are NaN in the file and index.csv, and the log says so.
-  const bool judged = path_watch_.rows_checked() > 0 || summary_.left_path();
-  const double nan = std::numeric_limits<double>::quiet_NaN();
-  summary_.path_error = judged ? path_watch_.worst_path() : nan;
-  summary_.b_error = judged ? path_watch_.worst_b() : nan;
-  summary_.rotation = judged ? path_watch_.worst_rotation() : nan;
+  summary_.set_path_errors(path_watch_);
+  const bool judged = std::isfinite(summary_.path_error);
   // The verdict in the file itself: analyze leaves a failed test out of every fit.
   results_->set_attribute("/", "status", summary_.left_path() ? "failed" : "done");
   results_->set_attribute("/", "status_reason", summary_.reason);
