@@ -157,3 +157,44 @@ def test_bad_targets_exit_2_with_one_line(work, text, expect):
     assert r.returncode == 2
     assert expect in r.stderr, r.stderr
     assert r.stderr.count("\n") == 1
+
+
+def _index(folder, rows):
+    import csv
+    os.makedirs(folder, exist_ok=True)
+    with open(os.path.join(folder, "index.csv"), "w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=["test", "status", "final_eta", "reason"])
+        w.writeheader()
+        w.writerows(rows)
+    return folder
+
+
+def test_a_test_that_left_its_path_measures_nothing_and_leaves_only_its_targets_surrogate(work):
+    """A run whose target test the watchdog failed gives NaN for that target (never its off-path value),
+    its other targets stay; the surrogate is fit on the runs that measured it, exactly (a quadratic
+    through noise-free quadratic data is recovered to round-off: 1e-9), and fewer runs than the
+    surrogate's coefficients stop the calibration with exit 1 naming the target and the count."""
+    import numpy as np
+    from sandcell_analysis import calibrate as cal
+    folder = _index(os.path.join(work, "measures"), [
+        dict(test="a", status="done", final_eta="0.8", reason=""),
+        dict(test="b", status="failed", final_eta="3.0", reason="b = 0.41 off its target 0.5")])
+    m = cal.measures_of(folder, {"final_eta:a": None, "final_eta:b": None}, TRIAXIAL)
+    assert m["final_eta:a"] == 0.8
+    assert np.isnan(m["final_eta:b"])
+    with pytest.raises(SystemExit):  # a test that is not in the run at all is a wrong target, not a failure
+        cal.measures_of(folder, {"final_eta:c": None}, TRIAXIAL)
+
+    rng = np.random.default_rng(1)
+    u = rng.random((8, 2))
+    truth = 0.3 + 0.2 * u[:, 0] - 0.1 * u[:, 1] + 0.05 * u[:, 0] * u[:, 1]
+    ys = [{"t": float(v)} for v in truth]
+    ys[3]["t"] = float("nan")
+    ys[6]["t"] = float("nan")
+    coef, s = cal.fit_surrogate(u[[0, 1, 2, 4, 5, 7]], truth[[0, 1, 2, 4, 5, 7]])
+    got = cal.fit_targets(u, ys, {"t": (0.5, 0.1)}, need=6)["t"]
+    assert np.allclose(got[0], coef, rtol=0, atol=1e-12)
+    assert abs(cal.predict(got[0], u[3:4])[0] - truth[3]) < 1e-9
+    with pytest.raises(SystemExit) as e:
+        cal.fit_targets(u, ys, {"t": (0.5, 0.1)}, need=7)
+    assert e.value.code == 1

@@ -205,8 +205,11 @@ def run_config(base, space, x, choice=None):
 
 
 def measures_of(folder, targets, triaxial):
-    """The targets' measures of one finished run."""
-    rows = [r for r in read_index(folder) if r.get("status", "").startswith("done")]
+    """The targets' measures of one finished run: NaN for a target whose tests all left their stress
+    path (status failed): such a test is no measure of anything, and the run leaves that target's
+    surrogate (fit_targets)."""
+    every = read_index(folder)
+    rows = [r for r in every if r.get("status", "").startswith("done")]
     if not rows:
         return None
     out = {}
@@ -226,10 +229,10 @@ def measures_of(folder, targets, triaxial):
             out[name] = float(v) if isinstance(v, (int, float)) else float("nan")
         else:
             chosen = [r for r in rows if not test or r["test"] == test]
-            if test and not chosen:
+            if test and not any(r["test"] == test for r in every):
                 fail(f"targets.{name}: no test named {test} in {folder}/index.csv "
-                     f"(tests: {', '.join(r['test'] for r in rows)})")
-            out[name] = float(np.mean([float(r[base]) for r in chosen]))
+                     f"(tests: {', '.join(r['test'] for r in every)})")
+            out[name] = float(np.mean([float(r[base]) for r in chosen])) if chosen else float("nan")
     return out
 
 
@@ -258,6 +261,21 @@ def run_point(name, cfg, args):
     if rc != 0 and not (rc == 1 and rows and all(complete(r) for r in rows)):
         fail(f"{name}: triaxial exited {rc}; see {os.path.join(folder, 'log.txt')}", 1)
     return folder
+
+
+def fit_targets(u, ys, targets, need):
+    """One quadratic surrogate per target, fit on the runs that measured it (a run whose test left its
+    stress path did not); fewer than NEED such runs cannot determine the surrogate: exit 1."""
+    surrogates = {}
+    for tname in targets:
+        y = np.array([m[tname] for m in ys])
+        ok = np.isfinite(y)
+        if ok.sum() < need:
+            fail(f"targets.{tname}: measured in {int(ok.sum())} of {len(y)} runs (runs.csv; the others' tests left "
+                 f"their stress path or the analysis could not fit it): a quadratic surrogate in {u.shape[1]} "
+                 f"parameter(s) needs at least {need}", 1)
+        surrogates[tname] = fit_surrogate(u[ok], y[ok])
+    return surrogates
 
 
 def complete(row):
@@ -392,11 +410,16 @@ def report_md(path, args, space, targets, result):
         for opt, q in c["options"].items():
             cells = [f"{q['params'][k]['mean']:.4g} +- {q['params'][k]['std']:.2g}" for k, _, _ in space]
             lines.append(f"| {opt} | {q['probability']:.3g} | {q['log_evidence']:.2f} | " + " | ".join(cells) + " |")
-    lines += ["", "| target | value +- sigma | surrogate error | check run | z |", "|---|---|---|---|---|"]
+    lines += ["", "Measured in: the design runs whose test of that target held its stress path (a test the path "
+              "watchdog failed measures nothing; the surrogate is fit on the others).", "",
+              "| target | value +- sigma | measured in | surrogate error | check run | z |",
+              "|---|---|---|---|---|---|"]
+    n_runs = len(result["runs"])
     for name, (value, sigma) in targets.items():
         c = result["check"].get(name, float("nan"))
-        lines.append(f"| {name} | {value:.4g} +- {sigma:.2g} | {result['surrogate_error'][name]:.2g} | {c:.4g} | "
-                     f"{(c - value) / sigma:+.2f} |")
+        check = f"{c:.4g} | {(c - value) / sigma:+.2f}" if math.isfinite(c) else "left its path | -"
+        lines.append(f"| {name} | {value:.4g} +- {sigma:.2g} | {result['measured'][name]} of {n_runs} | "
+                     f"{result['surrogate_error'][name]:.2g} | {check} |")
     lines += ["", "Sensitivity: change of each target across each parameter's range, in sigmas of the target:", "",
               "| target | " + " | ".join(k for k, _, _ in space) + " |", "|---|" + "---|" * len(space)]
     for name in targets:
@@ -467,12 +490,7 @@ def main(argv=None):
                 fail(f"{name}: no finished test in {folder}/index.csv", 1)
             ys.append(m)
             rows.append((name, option, x, m))
-        surrogates = {}
-        for tname in targets:
-            y = np.array([m[tname] for m in ys])
-            if not np.all(np.isfinite(y)):
-                fail(f"targets.{tname}: not measured in every run (runs.csv): the analysis could not fit it", 1)
-            surrogates[tname] = fit_surrogate(u, y)
+        surrogates = fit_targets(u, ys, targets, need)
         fits[option] = (ys, surrogates, posterior(space, targets, surrogates, args.seed))
     write_runs(os.path.join(args.out, "runs.csv"), space, targets, rows, choice[0] if choice else None)
     log_z = {o: fits[o][2][4] for o in options}
@@ -487,6 +505,7 @@ def main(argv=None):
     result = dict(config=args.config, budget=args.budget, seed=args.seed, runs=[r[0] for r in rows],
                   params=params, ess=ess, targets={n: dict(value=v, sigma=s) for n, (v, s) in targets.items()},
                   surrogate_error={n: surrogates[n][1] for n in targets}, check=check,
+                  measured={n: int(sum(math.isfinite(m[n]) for m in ys)) for n in targets},
                   sensitivity=sensitivity(space, targets, surrogates, center_u))
     if choice:
         result["choice"] = dict(key=choice[0], chosen=chosen, options={
