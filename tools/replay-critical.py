@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Replays the app's critical-state test (apps/triaxial/critical.hpp) on a shearing test's series.
+"""Replays the app's critical-state test (apps/triaxial/protocol/critical.hpp) on a shearing test's series.
 
 usage: tools/replay-critical.py RESULTS.h5 [--window 0.05] [--tolerance 0.02] [--tolerance-e 0.005]
 

@@ -1,5 +1,6 @@
 // triaxial: true triaxial DEM tests in a stress-controlled periodic cell, from one TOML file.
-// Everything happens in run.cpp (a library function, so the tests run the app in-process).
+// Everything happens in triaxial_main (cli.cpp; app.hpp maps the files), a library function, so the
+// tests run the app in-process.
 #include "run.hpp"
 
 #include <iostream>

@@ -1,5 +1,9 @@
 #include "slurm.hpp"
 
+#include "app.hpp"
+
+#include <CLI/CLI.hpp>
+
 #include <sys/wait.h>
 
 #include <cerrno>
@@ -131,6 +135,111 @@ int submit_slurm_scripts(const SlurmCampaign& c, std::ostream& out, std::ostream
   while (std::fgets(buf, sizeof buf, pipe)) out << buf;
   const int status = ::pclose(pipe);
   return WIFEXITED(status) ? WEXITSTATUS(status) : 1;
+}
+
+namespace {
+
+// The values of --time and --partition that go into the scripts. Returns 0, or 2 after a one-line message.
+int check_slurm_options(const SlurmCampaign& c, std::ostream& err) {
+  const auto time_ok = [](const std::string& t) {
+    int d = 0, h = 0, m = 0, sec = 0;
+    char tail = 0;
+    return (std::sscanf(t.c_str(), "%d-%d:%d:%d%c", &d, &h, &m, &sec, &tail) == 4 ||
+            std::sscanf(t.c_str(), "%d:%d:%d%c", &h, &m, &sec, &tail) == 3) &&
+           d >= 0 && h >= 0 && m >= 0 && m < 60 && sec >= 0 && sec < 60;
+  };
+  if (!time_ok(c.time)) {
+    err << "triaxial slurm: --time = " << c.time << ": allowed: HH:MM:SS or D-HH:MM:SS\n";
+    return 2;
+  }
+  if (c.partition.find_first_of(" \t\n'\"$`\\") != std::string::npos) {
+    err << "triaxial slurm: --partition = " << c.partition << ": allowed: a partition name (no spaces or quotes)\n";
+    return 2;
+  }
+  return 0;
+}
+
+// `triaxial slurm CONFIG --out DIR ...`: the campaign as Slurm job arrays (slurm.hpp).
+}  // namespace
+
+int slurm_main(int argc, const char* const* argv, std::ostream& out, std::ostream& err) {
+  SlurmCampaign c;
+  std::string config, dir;
+  bool submit = false;
+  CLI::App app{"sandcell triaxial slurm: a campaign as Slurm job arrays (preparations, tests, analysis)"};
+  app.add_option("config", config, "TOML configuration of the campaign")->required();
+  app.add_option("--out", dir, "output directory of the campaign (scripts in DIR/slurm)")->required();
+  app.add_option("--cpus-per-task", c.cpus_per_task, "CPUs (threads) of each task")->check(CLI::Range(1, 4096));
+  app.add_option("--time", c.time, "time limit of each task, HH:MM:SS or D-HH:MM:SS (default 24:00:00)");
+  app.add_option("--partition", c.partition, "partition (default: the cluster's)");
+  app.add_option("--thread-partition", c.thread_partition,
+                 "passed on to every task: how its threads share each pass (triaxial --help; default adaptive)")
+      ->check(CLI::IsMember(partition_name_list()));
+  app.add_option("--max-running", c.max_running, "tasks of an array running at once (0: no limit)")
+      ->check(CLI::Range(0, 100000));
+  app.add_flag("--submit", submit, "submit the scripts with sbatch after writing them");
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::CallForHelp&) {
+    out << app.help();
+    return 0;
+  } catch (const CLI::ParseError& e) {
+    err << "triaxial slurm: " << e.what() << " (see --help)\n";
+    return 2;
+  }
+  if (const int code = check_slurm_options(c, err); code != 0) return code;
+  Plan plan;
+  std::string text;
+  try {
+    plan = plan_from_file(config, Options{});
+    text = plan.config.text;
+  } catch (const ConfigError& e) {
+    err << "triaxial slurm: " << e.what() << '\n';
+    return 2;
+  }
+  if (plan.config.tests.size() < 2) {
+    err << "triaxial slurm: " << config << " has one test, not a campaign; run it with `triaxial " << config << "`\n";
+    return 2;
+  }
+  if (submit && std::system("command -v sbatch >/dev/null 2>&1") != 0) {
+    err << "triaxial slurm: --submit: sbatch is not on PATH (run on a Slurm login node, or leave out --submit to only write the scripts)\n";
+    return 2;
+  }
+  std::error_code ec;
+  c.out = fs::absolute(dir, ec);
+  c.config = c.out / "campaign.toml";
+  c.triaxial = fs::read_symlink("/proc/self/exe", ec);
+  c.preparations = plan.p0.size();
+  c.tests = plan.config.tests.size();
+  c.chained = plan.config.prepare.chain;
+  // The campaign's config is kept beside its results; another campaign's is not replaced.
+  if (fs::exists(c.config)) {
+    std::ifstream in(c.config);
+    std::ostringstream held;
+    held << in.rdbuf();
+    if (held.str() != text) {
+      err << "triaxial slurm: --out = " << dir << ": holds another campaign (" << c.config.string() << " differs from "
+          << config << "); allowed: another --out\n";
+      return 2;
+    }
+  }
+  try {
+    fs::create_directories(c.out);
+    if (!fs::exists(c.config)) std::ofstream(c.config) << text;
+    write_slurm_scripts(c);
+  } catch (const std::exception& e) {
+    err << "triaxial slurm: " << e.what() << '\n';
+    return 1;
+  }
+  out << "triaxial slurm: " << c.preparations << " preparation(s) " << (c.chained ? "(one chained job)" : "(array)")
+      << ", " << c.tests << " tests (array"
+      << (c.max_running > 0 ? ", " + std::to_string(c.max_running) + " at once" : "") << "), analysis; scripts in "
+      << (c.out / "slurm").string() << "\n";
+  if (!submit) {
+    out << "submit with: " << (c.out / "slurm" / "submit.sh").string() << "\n";
+    return 0;
+  }
+  return submit_slurm_scripts(c, out, err);
 }
 
 }  // namespace sandcell::triaxial

@@ -5,6 +5,7 @@
 // argument (the engine's std::invalid_argument is translated to ValueError by pybind11).
 #include <sandcell/sandcell.hpp>
 
+#include "protocol/series.hpp"
 #include "systems/homogenizer.hpp"
 #include "systems/path_watch.hpp"
 #include "systems/servo.hpp"
@@ -318,6 +319,8 @@ Measures measure_world(World& w, bool kinetic_stress, double d50, double density
 }
 
 }  // namespace
+
+void bind_protocol(py::module_& m);  // protocol.cpp: sandcell.Protocol and the triaxial series
 
 PYBIND11_MODULE(_sandcell, m) {
   m.doc() = "sandcell: DEM engine for stress-controlled periodic element tests (docs/python.md)";
@@ -832,4 +835,17 @@ PYBIND11_MODULE(_sandcell, m) {
       .def(
           "__enter__", [](ResultsFile& r) -> ResultsFile& { return r; }, py::return_value_policy::reference)
       .def("__exit__", [](ResultsFile& r, const py::args&) { r.close(); });
+  // The app's series row (apps/triaxial/protocol/series.hpp: the same columns, units and order).
+  m.def(
+      "append_row",
+      [](ResultsFile& r, const PyWorld& w, const Measures& mm, double wall) {
+        triaxial::append_row(r, w.world->state(), mm, wall);
+      },
+      py::arg("results"), py::arg("world"), py::arg("measures"), py::arg("wall") = 0.0,
+      "Appends one row of the triaxial app's series from measure()'s result (docs/physics.md section 8)");
+  m.def(
+      "append_row",
+      [](ResultsFile& r, const State& st, const Measures& mm, double wall) { triaxial::append_row(r, st, mm, wall); },
+      py::arg("results"), py::arg("state"), py::arg("measures"), py::arg("wall") = 0.0);
+  bind_protocol(m);
 }

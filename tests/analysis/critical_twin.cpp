@@ -1,4 +1,4 @@
-// The app's critical-state test (apps/triaxial/critical.cpp) on series read from a CSV file, for
+// The app's critical-state test (apps/triaxial/protocol/critical.cpp) on series read from a CSV file, for
 // test_critical_twin.py, which runs the Python test (sandcell_analysis.critical) on the same series
 // and asserts that the two agree.
 //

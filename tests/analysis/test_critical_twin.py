@@ -1,5 +1,5 @@
 """The critical-state test, Python (sandcell_analysis.critical) against its C++ twin
-(apps/triaxial/critical.cpp, what the app applies while shearing with shear.stop_at_critical): on
+(apps/triaxial/protocol/critical.cpp, what the app applies while shearing with shear.stop_at_critical): on
 the same series they must give the same verdict, the same rows in the window, the same changes over
 it, and the same first row at which the test holds when it is applied after every row (the app's
 stop).

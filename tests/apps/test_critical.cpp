@@ -1,4 +1,4 @@
-// The app's critical-state test (apps/triaxial/critical.hpp) on synthetic series: it measures a
+// The app's critical-state test (apps/triaxial/protocol/critical.hpp) on synthetic series: it measures a
 // drift as the fitted line's change over the window, accepts a stationary series whose rows
 // fluctuate by more than the tolerance (what a large sample does), refuses a drift of eta, p or e
 // beyond its tolerance whatever the fluctuations, and refuses windows that are not covered.

@@ -67,7 +67,7 @@ TEST_CASE("triaxial: each class of bad input exits 2 naming the key, and clobber
        std::string(base).replace(base.find("max_axial_strain = 0.03"), 23, "max_axial_strain = 2.0"),
        "sample.count = 300: the cell would narrow to"},
       {"dt above the stability limit", with("time", "dt_fraction = 1.5"), "time.dt_fraction = 1.5"},
-      // E = 1 MPa at p0 = 0.1 MPa: a mean overlap of ~0.8 R by Hertz (config.cpp).
+      // E = 1 MPa at p0 = 0.1 MPa: a mean overlap of ~0.8 R by Hertz (protocol/config.cpp).
       {"overlap beyond the Hertz law", std::string(base).replace(base.find("young = 1.0e9"), 13, "young = 1.0e6"),
        "tests.p0[0] = 100000: with material.young = 1e+06 Pa the mean contact overlap would be ~0.77"},
       {"bad gradation", with("sample", "distribution = \"gradation\"\ngradation = [[0.005, 0], [0.004, 100]]"),
@@ -100,7 +100,7 @@ TEST_CASE("triaxial: each class of bad input exits 2 naming the key, and clobber
       {"a non-positive inertial number",
        std::string(base).replace(base.find("strain_rate = 2.0"), 17, "inertial_number = 0.0"),
        "shear.inertial_number = 0: must be in (0, 0.1]"},
-      // Measured: at 0.3 and 0.5 t_R a preparation with friction never came to rest (config.cpp).
+      // Measured: at 0.3 and 0.5 t_R a preparation with friction never came to rest (protocol/config.cpp).
       {"a frictional preparation at a long step", with("prepare", "friction = 0.25\ndt_fraction = 0.5"),
        "prepare.dt_fraction = 0.5 with prepare.friction = 0.25: a frictional preparation needs prepare.dt_fraction <= 0.2"},
       {"neither an axial rate nor an inertial number",

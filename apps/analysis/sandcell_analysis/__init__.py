@@ -3,7 +3,7 @@ and the plot after each run).
 
 Modules
   results       the one reader of results files (<test>.h5), index.csv and samples.csv
-  critical      the critical-state test (the Python twin of apps/triaxial/critical.cpp)
+  critical      the critical-state test (the Python twin of apps/triaxial/protocol/critical.cpp)
   csl           the critical state line e_c = e_Gamma - lambda (p/p_a)^xi and its fit
   m_theta       Lode-angle dependence M(theta) = M_c g(theta), b and theta of a stress state
   dilatancy     dilatancy series, the Li & Dafalias forms and their fits

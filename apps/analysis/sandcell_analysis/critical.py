@@ -1,5 +1,5 @@
 """The critical-state test: ONE implementation, used by `triaxial analyze` and checked against the
-app's C++ twin (apps/triaxial/critical.cpp, applied while shearing with shear.stop_at_critical) by
+app's C++ twin (apps/triaxial/protocol/critical.cpp, applied while shearing with shear.stop_at_critical) by
 tests/analysis/test_critical_twin.py."""
 import math
 
@@ -92,7 +92,7 @@ def detect_critical(eps1, series, window=0.05, tol_eta=0.02, tol_p=0.02, tol_e=0
     return out
 
 
-# The criterion the app applies while shearing (apps/triaxial/critical.hpp, CriticalTest's defaults):
+# The criterion the app applies while shearing (apps/triaxial/protocol/critical.hpp, CriticalTest's defaults):
 # eta, p and e, not eps_v (|de| <= 0.005 bounds eps_v's change to 0.005 / (1 + e), see there).
 APP_CRITERION = dict(window=0.05, tol_eta=0.02, tol_p=0.02, tol_e=0.005, tol_epsv=None, pre_strain=0.05,
                      min_points=10)

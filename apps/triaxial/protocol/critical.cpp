@@ -1,4 +1,4 @@
-#include "critical.hpp"
+#include "protocol/critical.hpp"
 
 #include <algorithm>
 #include <cmath>

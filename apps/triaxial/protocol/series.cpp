@@ -1,0 +1,92 @@
+#include "protocol/series.hpp"
+
+#include "systems/path_watch.hpp"
+
+#include "engine/world.hpp"
+
+#include <cmath>
+#include <string>
+
+namespace sandcell::triaxial {
+
+namespace {
+
+void six(const Mat3& t, double* out) {
+  const double v[6] = {t(0, 0), t(1, 1), t(2, 2), t(0, 1), t(0, 2), t(1, 2)};
+  for (int k = 0; k < 6; ++k) out[k] = v[k];
+}
+void three(const Vec3& v, double* out) {
+  for (int k = 0; k < 3; ++k) out[k] = v[k];
+}
+
+using S = const State&;
+using M = const Measures&;
+// The columns of docs/physics.md section 8, in the order of the results files.
+constexpr SeriesColumn k_columns[] = {
+    {"time", "s", 1, [](S s, M, double, double* o) { *o = s.clock.time; }},
+    {"step", "-", 1, [](S s, M, double, double* o) { *o = static_cast<double>(s.clock.step); }},
+    {"strain", "- (logarithmic, compression positive)", 3, [](S, M m, double, double* o) { three(m.strain, o); }},
+    {"strain_engineering", "-", 3, [](S, M m, double, double* o) { three(m.strain_engineering, o); }},
+    {"strain_rate", "1/s (compression positive)", 3, [](S, M m, double, double* o) { three(m.strain_rate, o); }},
+    {"stress", "Pa (xx yy zz xy xz yz, compression positive)", 6, [](S, M m, double, double* o) { six(m.stress, o); }},
+    {"principal_stress", "Pa (s1 >= s2 >= s3)", 3, [](S, M m, double, double* o) { three(m.inv.principal, o); }},
+    {"p", "Pa", 1, [](S, M m, double, double* o) { *o = m.inv.p; }},
+    {"q", "Pa", 1, [](S, M m, double, double* o) { *o = m.inv.q; }},
+    {"eta", "-", 1, [](S, M m, double, double* o) { *o = m.inv.eta; }},
+    {"b", "-", 1, [](S, M m, double, double* o) { *o = m.inv.b; }},
+    {"theta", "rad", 1, [](S, M m, double, double* o) { *o = m.inv.theta; }},
+    {"eps_v", "-", 1, [](S, M m, double, double* o) { *o = m.eps_v; }},
+    {"eps_q", "-", 1, [](S, M m, double, double* o) { *o = m.eps_q; }},
+    {"e", "-", 1, [](S, M m, double, double* o) { *o = m.void_ratio; }},
+    {"Z", "-", 1, [](S, M m, double, double* o) { *o = m.z; }},
+    {"Z_mech", "-", 1, [](S, M m, double, double* o) { *o = m.z_mech; }},
+    {"rattlers", "-", 1, [](S, M m, double, double* o) { *o = static_cast<double>(m.rattlers); }},
+    {"fabric", "- (xx yy zz xy xz yz)", 6, [](S, M m, double, double* o) { six(m.fabric, o); }},
+    {"kinetic_energy", "J", 1, [](S, M m, double, double* o) { *o = m.kinetic_energy; }},
+    {"elastic_energy", "J", 1, [](S, M m, double, double* o) { *o = m.elastic_energy; }},
+    {"max_overlap_ratio", "- (largest overlap / smaller radius)", 1,
+     [](S, M m, double, double* o) { *o = m.max_overlap_ratio; }},
+    {"unbalanced_force_ratio", "-", 1, [](S, M m, double, double* o) { *o = m.unbalanced; }},
+    {"inertial_number", "- ((eps_dot_1 - eps_dot_3) d50 sqrt(rho/p))", 1,
+     [](S, M m, double, double* o) { *o = m.inertial_number; }},
+    {"inertial_number_axial", "- (eps_dot_1 d50 sqrt(rho/p): what shear.inertial_number sets)", 1,
+     [](S, M m, double, double* o) { *o = m.inertial_number_axial; }},
+    {"rotation", "degrees (the principal axes' turn off the cell axes, 1/2 asin(2 |tau| / (s1 - s3)))", 1,
+     [](S, M m, double, double* o) { *o = principal_rotation_deg(m.stress); }},
+    {"shear_ratio", "- (largest |shear stress| / p)", 1, [](S, M m, double, double* o) { *o = shear_ratio(m.stress); }},
+    {"wall_time", "s", 1, [](S, M, double wall, double* o) { *o = wall; }},
+};
+
+}  // namespace
+
+std::span<const SeriesColumn> series_columns() { return k_columns; }
+
+void append_row(ResultsFile& results, const State& state, const Measures& m, double wall) {
+  double v[6];
+  for (const SeriesColumn& c : k_columns) {
+    c.value(state, m, wall, v);
+    if (c.width == 1)
+      results.append(c.name, v[0], c.units);
+    else
+      results.append(c.name, std::span<const double>(v, c.width), c.units);
+  }
+}
+
+void check_finite(const State& state, const Measures& m) {
+  const Particles& p = state.particles;
+  for (std::size_t k = 0; k < p.size(); ++k) {
+    const char* what = !p.position[k].allFinite()           ? "position"
+                       : !p.velocity[k].allFinite()         ? "velocity"
+                       : !p.angular_velocity[k].allFinite() ? "angular velocity"
+                       : !p.force[k].allFinite()            ? "force"
+                                                            : nullptr;
+    if (what)
+      throw SimulationError("step " + std::to_string(state.clock.step) + ": particle id " + std::to_string(p.id[k]) +
+                            ": " + what +
+                            " is not finite (the run went unstable: lower time.dt_fraction or the strain rate)");
+  }
+  if (!std::isfinite(m.inv.p) || !state.cell.length.allFinite())
+    throw SimulationError("step " + std::to_string(state.clock.step) + ": cell stress or lengths are not finite");
+}
+
+}  // namespace sandcell::triaxial

@@ -1,0 +1,385 @@
+// The shear stage of a triaxial run: one test from its prepared sample (or checkpoint) to its
+// finished results file (ShearRun), its summary, and the runner's shearing of a test.
+#include "app.hpp"
+
+#include "protocol/accuracy.hpp"
+#include "protocol/critical.hpp"
+#include "protocol/series.hpp"
+
+#include "engine/results.hpp"
+#include "systems/catalogue.hpp"
+#include "systems/homogenizer.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdlib>
+#include <optional>
+
+namespace sandcell::triaxial {
+
+// The series rows of the test, for the critical-state test (critical.hpp) and the peak.
+struct History {
+  std::vector<double> eps1, p, q, e;
+  CriticalCheck critical(const ShearConfig& h) const {
+    return check_critical(
+        eps1, p, q, e,
+        CriticalTest{
+            .window = h.critical_window, .tolerance = h.critical_tolerance, .tolerance_e = h.critical_tolerance_e});
+  }
+  CheckpointExtra save() const {
+    CheckpointExtra x;
+    x.doubles = {{"history_eps1", eps1}, {"history_p", p}, {"history_q", q}, {"history_e", e}};
+    return x;
+  }
+  void load(CheckpointExtra& x) {
+    eps1 = x.doubles["history_eps1"];
+    p = x.doubles["history_p"];
+    q = x.doubles["history_q"];
+    e = x.doubles["history_e"];
+  }
+};
+
+Summary Runner::test_summary(const TestSpec& test, const State& state, CheckpointExtra& extra) const {
+  Summary summary;
+  summary.name = test.name;
+  CheckpointExtra sample_extra;
+  read_checkpoint(sample_path(test.p0), &sample_extra);
+  summary.e0 = sample_extra.doubles["e0"].at(0);
+  summary.z0 = sample_extra.doubles["Z"].at(0);
+  const bool complete = extra.integers.count("complete") && extra.integers["complete"].at(0) == 1;
+  summary.reason = extra.strings.count("path_failure") ? extra.strings["path_failure"] : "";
+  summary.status = !complete ? "interrupted" : summary.left_path() ? "failed" : "done (earlier run)";
+  if (extra.doubles.count("path_watch")) {
+    PathWatch watch = make_path_watch(plan_, test);
+    watch.restore(extra.doubles["path_watch"]);
+    summary.set_path_errors(watch);
+  }
+  History history;
+  history.load(extra);
+  summary.steps = state.clock.step;
+  summary.wall = extra.doubles["wall_time"].at(0);
+  if (!history.eps1.empty()) {
+    const auto peak = std::max_element(history.q.begin(), history.q.end()) - history.q.begin();
+    summary.peak_eta = history.q[peak] / history.p[peak];
+    summary.peak_strain = history.eps1[peak];
+    summary.final_eta = history.q.back() / history.p.back();
+    summary.final_e = history.e.back();
+    summary.final_p = history.p.back();
+    summary.final_strain = history.eps1.back();
+  }
+  return summary;
+}
+
+Summary Runner::test_summary_on_disk(const TestSpec& test) const {
+  const fs::path ckpt = plan_.out / (test.name + ".checkpoint.h5");
+  Summary summary;
+  summary.name = test.name;
+  if (!fs::exists(ckpt) || !fs::exists(sample_path(test.p0))) return summary;  // "not run"
+  CheckpointExtra extra;
+  const State state = read_checkpoint(ckpt, &extra);
+  return test_summary(test, state, extra);
+}
+
+// One test's shearing stage (Runner::shear): from its prepared sample, or with --resume from its
+// checkpoint, to the finished results file, the checkpoint marked complete and the summary.
+class ShearRun {
+ public:
+  ShearRun(const Plan& plan, Log& log, const TestSpec& test, Summary& summary)
+      : plan_(plan),
+        log_(log),
+        test_(test),
+        summary_(summary),
+        h_(plan.config.shear),
+        o_(plan.config.output),
+        ckpt_(plan.out / (test.name + ".checkpoint.h5")),
+        path_(plan.out / (test.name + ".h5")),
+        max_strain_(plan.options.max_axial_strain > 0.0 ? plan.options.max_axial_strain : h_.max_axial_strain),
+        watch_(test.name, [&log](const std::string& line) { log.line(line); }),
+        path_watch_(make_path_watch(plan, test)) {}
+
+  /// Opens the test (its state and results file, from the sample or the checkpoint) and the world
+  /// that steps it; a new test gets its first row and snapshot. Returns false when the checkpoint
+  /// marks the test complete (an earlier run's): the summary is then that run's.
+  bool open(const Runner& runner, const fs::path& sample);
+  /// Steps to the end: the maximum axial strain (the steps of path "strain"), or critical state
+  /// with shear.stop_at_critical. Throws Interrupted after a checkpoint when asked to stop.
+  void run();
+  /// The last snapshot, the checkpoint marked complete, the summary and the job's last line.
+  void finish();
+  /// The PNG of q and eps_v (plot_triaxial.py); a missing python3/matplotlib is a warning.
+  void plot() const;
+
+ private:
+  void resume(const State& state, CheckpointExtra& extra);
+  State start_from_sample(const fs::path& sample);
+  void row();
+  CheckpointExtra extras() const;
+  static double axial_strain(const Cell& cell) { return -std::log(cell.length[0] / cell.length0[0]); }
+  bool finished(std::uint64_t s, double eps1) const {
+    return test_.path == ShearPath::strain ? s >= h_.steps : eps1 >= max_strain_;
+  }
+  bool progress_due() const {
+    return plan_.options.progress && std::chrono::duration<double>(Clock::now() - last_progress_).count() > 1.0;
+  }
+  bool event_due(std::uint64_t s, double eps1);
+  void check_critical(double eps1);
+  void checkpoint_or_stop(std::uint64_t s);
+  void report_progress(std::uint64_t s, double eps1);
+
+  const Plan& plan_;
+  Log& log_;
+  const TestSpec& test_;
+  Summary& summary_;
+  const ShearConfig& h_;
+  const OutputConfig& o_;
+  const fs::path ckpt_, path_;  // the checkpoint, the results file
+  const double max_strain_;     // shear.max_axial_strain, or --max-axial-strain
+  Timer timer_;
+  History history_;
+  AccuracyWatch watch_;
+  PathWatch path_watch_;
+  std::optional<ResultsFile> results_;
+  bool resumed_ = false;
+  std::optional<World> world_;
+  MeasureOptions mo_;
+  Measures m_;  // the last row's
+  std::uint64_t rows_ = 0;
+  std::uint64_t step0_ = 0;  // the step this process started stepping at
+  Clock::time_point t0_, last_progress_;
+};
+
+bool ShearRun::open(const Runner& runner, const fs::path& sample) {
+  const Model model = shear_model(plan_, test_);
+  CheckpointExtra sample_extra;
+  read_checkpoint(sample, &sample_extra);
+  summary_.e0 = sample_extra.doubles["e0"].at(0);
+  summary_.z0 = sample_extra.doubles["Z"].at(0);
+  State state;
+  if (plan_.options.resume && fs::exists(ckpt_)) {
+    CheckpointExtra extra;
+    state = read_checkpoint(ckpt_, &extra);
+    timer_.before = extra.doubles["wall_time"].at(0);
+    if (extra.integers.count("complete") && extra.integers["complete"].at(0) == 1) {
+      summary_ = runner.test_summary(test_, state, extra);
+      return false;
+    }
+    resume(state, extra);
+  } else {
+    state = start_from_sample(sample);
+  }
+  world_.emplace(model, std::move(state), systems_for(model),
+                 ExecutorConfig{Backend::tbb, plan_.job_threads, plan_.partition}, false);
+  mo_.d50 = median_diameter(world_->state().particles);
+  mo_.density = plan_.config.material.density;
+  log_.line(test_.name + ": " + path_name(test_.path) +
+            (test_.path == ShearPath::strain ? "" : ", b = " + num(test_.b)) + ", p0 = " + num(test_.p0 / 1e6) +
+            " MPa, e0 = " + num(summary_.e0, "%.4f") + ", to axial strain " + num(max_strain_) + ", servo gain " +
+            num(model.servo.gain, "%.4g") + " 1/s, " + std::to_string(plan_.job_threads) + " threads");
+  if (!resumed_) {
+    row();
+    results_->write_snapshot(world_->state());
+  }
+  return true;
+}
+
+// --resume: the series and the accuracy watch as checkpointed, the results file cut back to the
+// checkpoint's step.
+void ShearRun::resume(const State& state, CheckpointExtra& extra) {
+  history_.load(extra);
+  watch_.restore(extra.doubles["watch_worst"]);
+  if (extra.doubles.count("path_watch")) path_watch_.restore(extra.doubles["path_watch"]);
+  results_.emplace(ResultsFile::reopen(path_, state.clock.step));
+  resumed_ = true;
+  log_.line(test_.name + ": resumed at step " + std::to_string(state.clock.step));
+}
+
+// A new test: the prepared sample with its clock, strains and servo state reset and the first
+// rates set; a new results file.
+State ShearRun::start_from_sample(const fs::path& sample) {
+  State state = read_checkpoint(sample, nullptr);
+  start_test(plan_, test_, state);
+  results_.emplace(ResultsFile::create(path_, plan_.config.text,
+                                       {{"job", test_.name},
+                                        {"stage", "shear"},
+                                        {"path", path_name(test_.path)},
+                                        {"b", num(test_.b)},
+                                        {"p0", num(test_.p0)}}));
+  return state;
+}
+
+// A row of the series: measured, checked, appended (and flushed every output.flush_interval rows),
+// watched, and kept in the history.
+void ShearRun::row() {
+  m_ = measure(world_->model(), world_->state(), world_->executor(), mo_);
+  check_finite(world_->state(), m_);
+  append_row(*results_, world_->state(), m_, timer_.elapsed());
+  if (world_->state().clock.step > 0) watch_.check(m_, world_->state().clock.step);
+  const std::uint64_t step = world_->state().clock.step;
+  const auto failure = path_watch_.add({step, m_.strain[0], m_.stress, m_.max_overlap_ratio, m_.unbalanced});
+  if (failure && !summary_.left_path()) {  // (a resumed watch.stop = false run keeps its first reason)
+    summary_.reason = failure->message;
+    log_.line(test_.name + ": failed: " + failure->message +
+              (plan_.config.watch.stop ? "; stopped" : "; runs on (watch.stop = false)"));
+  }
+  history_.eps1.push_back(m_.strain[0]);
+  history_.p.push_back(m_.inv.p);
+  history_.q.push_back(m_.inv.q);
+  history_.e.push_back(m_.void_ratio);
+  if (++rows_ % o_.flush_interval == 0) results_->flush();
+}
+
+// What a checkpoint keeps besides the state: the history and the accuracy watch's worst values.
+CheckpointExtra ShearRun::extras() const {
+  CheckpointExtra x = history_.save();
+  x.doubles["watch_worst"] = watch_.worst_values();
+  x.doubles["path_watch"] = path_watch_.save();
+  if (summary_.left_path()) x.strings["path_failure"] = summary_.reason;
+  return x;
+}
+
+// Whether the loop of run() has something to do after step s: the end, a row, a snapshot, a
+// checkpoint, a stop or a progress line.
+bool ShearRun::event_due(std::uint64_t s, double eps1) {
+  return finished(s, eps1) || s % o_.series_interval == 0 ||
+         (o_.snapshot_interval > 0 && s % o_.snapshot_interval == 0) || checkpoint_due(o_, s, timer_) ||
+         plan_.options.stop_due(s, step0_) || progress_due();
+}
+
+void ShearRun::run() {
+  t0_ = Clock::now();
+  step0_ = world_->state().clock.step;
+  last_progress_ = Clock::now();
+  for (;;) {
+    // Steps until the body below has something to do: one call for many steps is bitwise the
+    // same as one call per step, and faster (World::step_until).
+    world_->step_until(std::numeric_limits<std::uint64_t>::max(), [&](Cell& cell, const sandcell::Clock& clock) {
+      return event_due(clock.step, axial_strain(cell));
+    });
+    State& st = world_->state();
+    const std::uint64_t s = st.clock.step;
+    const double eps1 = axial_strain(st.cell);
+    const bool done = finished(s, eps1);
+    if (s % o_.series_interval == 0 || done) {
+      row();
+      if (h_.stop_at_critical) check_critical(eps1);
+    }
+    if (o_.snapshot_interval > 0 && s % o_.snapshot_interval == 0) results_->write_snapshot(st);
+    if (done || summary_.critical || (summary_.left_path() && plan_.config.watch.stop)) break;
+    checkpoint_or_stop(s);
+    if (progress_due()) report_progress(s, eps1);
+  }
+}
+
+// shear.stop_at_critical: marks the summary (which ends the loop) when the history has reached
+// critical state (critical.hpp).
+void ShearRun::check_critical(double eps1) {
+  if (const CriticalCheck c = history_.critical(h_); c.reached) {
+    summary_.critical = true;
+    log_.line(test_.name + ": critical state at eps1 = " + num(100.0 * eps1, "%.2f") + " %: over the last " +
+              num(100.0 * h_.critical_window, "%g") + " % (" + std::to_string(c.rows) +
+              " rows) the fitted lines change eta by " + num(100.0 * c.change_eta, "%.2f") + " %, p by " +
+              num(100.0 * c.change_p, "%.2f") + " %, e by " + num(c.change_e, "%.4f"));
+  }
+}
+
+// A checkpoint when one is due; on a stop request (--stop-after, a signal) a checkpoint, then
+// Interrupted.
+void ShearRun::checkpoint_or_stop(std::uint64_t s) {
+  const State& st = world_->state();
+  if (checkpoint_due(o_, s, timer_)) {
+    results_->flush();
+    save(ckpt_, st, extras(), timer_);
+  }
+  if (plan_.options.stop_due(s, step0_)) {
+    results_->flush();
+    save(ckpt_, st, extras(), timer_);
+    throw Interrupted(test_.name + ": stopped at step " + std::to_string(s) + " (" + Options::stop_reason() +
+                      "), checkpoint written");
+  }
+}
+
+// The progress line (a terminal only): the last row's measures, the speed and the time left.
+void ShearRun::report_progress(std::uint64_t s, double eps1) {
+  last_progress_ = Clock::now();
+  const double speed = double(s - step0_) / std::chrono::duration<double>(Clock::now() - t0_).count();
+  const double rate = -world_->state().cell.rate[0];  // 1/s, the axial rate now
+  const double left = test_.path != ShearPath::strain
+                          ? (rate > 0.0 ? (max_strain_ - eps1) / (rate * world_->model().dt) / speed : 0.0)
+                          : double(h_.steps - s) / speed;
+  log_.progress(test_.name + " step " + std::to_string(s) + "  eps1 " + num(100 * eps1, "%.2f") + " %  p " +
+                    num(m_.inv.p / 1e6, "%.4f") + " MPa  q " + num(m_.inv.q / 1e6, "%.4f") + " MPa  e " +
+                    num(m_.void_ratio, "%.4f") + "  I " + num(m_.inertial_number, "%.1e") + "  unbal " +
+                    num(m_.unbalanced, "%.3f") + "  " + num(speed, "%.0f") + " steps/s  ETA " + num(left, "%.0f") +
+                    " s",
+                plan_.config.parallel == 1);
+}
+
+void ShearRun::finish() {
+  State& st = world_->state();
+  if (o_.snapshot_interval == 0 || st.clock.step % o_.snapshot_interval != 0) results_->write_snapshot(st);
+  // A test that ended before its first full window (shorter than the ramp and a window) was not
+  // judged: its errors are NaN in the file and index.csv, and the log says so.
+  summary_.set_path_errors(path_watch_);
+  const bool judged = std::isfinite(summary_.path_error);
+  // The verdict in the file itself: analyze leaves a failed test out of every fit.
+  results_->set_attribute("/", "status", summary_.left_path() ? "failed" : "done");
+  results_->set_attribute("/", "status_reason", summary_.reason);
+  results_->set_attribute("/", "path_error", summary_.path_error);
+  results_->set_attribute("/", "b_error", summary_.b_error);
+  results_->set_attribute("/", "rotation_deg", summary_.rotation);
+  results_->close();
+  CheckpointExtra extra = extras();
+  extra.integers["complete"] = {1};
+  save(ckpt_, st, extra, timer_);
+
+  const auto peak = std::max_element(history_.q.begin(), history_.q.end()) - history_.q.begin();
+  summary_.peak_eta = history_.q[peak] / history_.p[peak];
+  summary_.peak_strain = history_.eps1[peak];
+  summary_.final_eta = m_.inv.eta;
+  summary_.final_e = m_.void_ratio;
+  summary_.final_p = m_.inv.p;
+  summary_.final_strain = m_.strain[0];
+  summary_.steps = st.clock.step;
+  summary_.wall = timer_.elapsed();
+  if (!judged && test_.path != ShearPath::strain)
+    log_.line(test_.name + ": its stress path was not judged: it ended at eps1 = " + num(100 * m_.strain[0], "%.2f") +
+              " %, before the watchdog's first window (" + num(100 * h_.ramp_strain, "%g") + " % of ramp and " +
+              num(100 * plan_.config.watch.tolerance.window, "%g") + " %)");
+  summary_.status = summary_.left_path() ? "failed" : summary_.critical ? "done (critical state)" : "done";
+  log_.line(test_.name + (summary_.left_path() ? ": failed (left its stress path) at step " : ": done at step ") +
+            std::to_string(st.clock.step) +
+            ", eps1 = " + num(100 * m_.strain[0], "%.2f") + " %: peak q/p = " + num(summary_.peak_eta, "%.4f") +
+            " at eps1 = " + num(100 * summary_.peak_strain, "%.2f") + " %, final q/p = " + num(m_.inv.eta, "%.4f") +
+            ", p = " + num(m_.inv.p / 1e6, "%.4f") + " MPa, b = " + num(m_.inv.b, "%.3f") +
+            ", e = " + num(m_.void_ratio, "%.4f") + ", wall " + num(summary_.wall, "%.1f") + " s; " + watch_.worst() +
+            "; path error " + num(100.0 * path_watch_.worst_path(), "%.2f") + " %, b error " +
+            num(path_watch_.worst_b(), "%.3f") + ", rotation " + num(path_watch_.worst_rotation(), "%.1f") + " deg");
+}
+
+void ShearRun::plot() const {
+  // The plot is a convenience: a missing python3/matplotlib is a warning, not a failure.
+  const fs::path script = script_path("plot_triaxial.py");
+  const fs::path png = plan_.out / (test_.name + ".png");
+  if (!script.empty()) {
+    const std::string cmd =
+        "'" + python() + "' '" + script.string() + "' '" + path_.string() + "' '" + png.string() + "' 2>&1";
+    if (std::system(cmd.c_str()) == 0)
+      log_.line(test_.name + ": plot " + png.string());
+    else
+      log_.line(test_.name + ": warning: no plot (needs python3 with h5py and matplotlib: " + cmd + ")");
+  }
+}
+
+void Runner::shear(const TestSpec& test, Summary& summary) {
+  summary.name = test.name;
+  FileLock job;
+  const fs::path lock = plan_.out / ".locks" / (test.name + ".lock");
+  if (!job.try_lock(lock, FileLock::Mode::exclusive)) throw InUse(in_use_message(lock, "test " + test.name));
+  ShearRun run(plan_, log_, test, summary);
+  if (!run.open(*this, sample_path(test.p0))) return;  // complete in an earlier run
+  run.run();
+  run.finish();
+  if (plan_.config.output.plot) run.plot();
+}
+
+}  // namespace sandcell::triaxial

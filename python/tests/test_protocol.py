@@ -1,0 +1,83 @@
+"""sandcell.Protocol: the app's protocol from Python is the app's own code (apps/triaxial/protocol),
+checked against the app's documented rules and the app itself."""
+import math
+import os
+import subprocess
+
+import pytest
+
+import sandcell as sc
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+SMALL = os.path.join(HERE, "small.toml")
+
+
+def test_derived_values_follow_the_documented_rules():
+    """dt = dt_fraction t_R of the smallest sphere; t_s = max(dt, 0.2 t_R); the shear gain
+    0.1 (p0/E*)^(2/3) / t_s and the integral time 1000 t_s (docs/physics.md section 6). Exact: the
+    same formulas in the same order give the same double."""
+    p = sc.Protocol.load(SMALL)
+    mat = sc.Material(density=2650.0, young=7e9, poisson=0.3, restitution=0.5, friction=0.5, rolling_friction=0.1)
+    t_r = sc.rayleigh_time(0.5 * min(p.diameters), mat)
+    assert p.r_min == 0.5 * min(p.diameters)
+    assert p.dt == 0.2 * t_r
+    assert p.servo_time == max(p.dt, 0.2 * t_r)
+    s = p.shear_model(0).servo
+    assert s.gain == sc.derived_gain(0.1, 0.5e6, mat, p.servo_time)
+    assert s.integral_time == 1000 * p.servo_time
+    assert s.max_rate == 10 * 10.0 and s.max_rate_ratio == 10.0  # the cap follows the axial rate, 10 x
+    e_star = 7e9 / (2 * (1 - 0.3 ** 2))
+    assert math.isclose(sc.derived_gain(0.05, 1e5, mat, 1e-6), 0.05 * (1e5 / e_star) ** (2 / 3) / 1e-6, rel_tol=1e-15)
+    prep = p.prepare_model(0.5e6)
+    assert prep.servo.path == "isotropic" and prep.servo.p == 0.5e6
+    assert prep.materials[0].friction == 0.0  # [prepare] friction, restored for the shear
+    assert p.shear_model(p.tests[0].name).materials[0].friction == 0.5
+
+
+def test_tests_and_tags_are_the_apps():
+    p = sc.Protocol.load(SMALL)
+    assert [t.name for t in p.tests] == ["p-b0.50-p0_500kPa"]
+    assert p.tests[0].path == "constant_p" and p.tests[0].b == 0.5 and p.p0 == [0.5e6]
+    assert sc.p0_tag(0.5e6) == "p0_500kPa"
+    with pytest.raises(KeyError):
+        p.shear_model("no-such-test")
+    with pytest.raises(IndexError):
+        p.shear_model(1)
+
+
+def test_dt_is_the_one_the_app_reports():
+    """`triaxial --check` prints the dt it derives (%.6g): the same value."""
+    app = os.environ.get("SANDCELL_TRIAXIAL")
+    if not app:
+        pytest.skip("SANDCELL_TRIAXIAL not set")
+    out = subprocess.run([app, SMALL, "--check"], capture_output=True, text=True, check=True).stdout
+    reported = float(out.split("dt = ")[1].split(" s")[0])
+    assert "%.6g" % sc.Protocol.load(SMALL).dt == "%.6g" % reported
+
+
+def test_a_bad_config_is_a_value_error_naming_the_key():
+    with pytest.raises(sc.ConfigError, match="material.young"):
+        sc.Protocol.parse(open(SMALL).read().replace("young = 7.0e9", "young = -1.0"))
+    with pytest.raises(ValueError):  # ConfigError is a ValueError
+        sc.Protocol.parse("[nonsense]\n")
+
+
+def test_the_series_schema_is_one_table():
+    """The 28 columns of the results files (the twin test compares them bitwise with the app's)."""
+    cols = sc.series_columns()
+    names = [c[0] for c in cols]
+    assert len(cols) == 28 and len(set(names)) == 28
+    assert names[:2] == ["time", "step"] and names[-1] == "wall_time"
+    assert dict((c[0], c[2]) for c in cols)["stress"] == 6
+
+
+def test_the_accuracy_watch_warns_once_per_indicator():
+    p = sc.Protocol.load(SMALL)
+    world = sc.World(p.prepare_model(0.5e6), p.cloud(p.prepare_model(0.5e6)), threads=1)
+    m = world.measure(d50=p.d50, density=2650.0)
+    lines = []
+    w = sc.AccuracyWatch("job", lines.append)
+    w.check(m, 1)
+    w.check(m, 2)
+    assert len(lines) <= 4 and all(line.startswith("job: warning: step 1") for line in lines)
+    assert "overlap/R" in w.worst()
