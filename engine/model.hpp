@@ -61,13 +61,14 @@ enum class AxisControl {
   volume,  // custom paths only (PathTargets): the common rate of such axes that keeps the volume constant
 };
 
-/// The stress path whose targets the servo recomputes from the measured sigma1 (docs/physics.md section 6).
+/// The stress path whose targets the servo recomputes from the measured sigma1 (docs/physics.md
+/// section 6). Each path's name, formulas and checks are its row in systems/stress_paths.cpp.
 enum class StressPath {
-  fixed,              // per-axis targets as given (`target`)
-  isotropic,          // all three axes to p
-  constant_p_b,       // sigma3* = (3p - (1+b) s1)/(2-b), sigma2* = (3p(1-b) + (2b-1) s1)/(2-b)
-  constant_sigma3_b,  // sigma3* = sigma3, sigma2* = b s1 + (1-b) sigma3
-  custom,             // ServoSettings::custom decides each axis's control and target at every servo update
+  fixed,            // per-axis targets as given (`target`)
+  isotropic,        // all three axes to p
+  constant_p,       // p and b held
+  constant_sigma3,  // sigma3 and b held
+  custom,           // ServoSettings::custom decides each axis's control and target at every servo update
 };
 
 /// What a custom path sees at each servo update (docs/physics.md section 6.1): the stress the

@@ -3,6 +3,7 @@
 //   static void run(const Model&, State&, Scratch&, Executor&);
 // and, optionally, its part in the rest of World's protocol (all static members, detected by
 // make_system(); a system without them takes no part):
+//   static void check(const Model&);                     refuse settings of the system's own (invalid_argument)
 //   static void prepare(const Model&, State&);          allocate what the model needs in the state
 //                                                      (e.g. a contact law's history), before anything runs
 //   static void setup(const Model&, State&, Scratch&, Executor&);
@@ -42,6 +43,7 @@ struct SystemSpec {
   ComponentMask writes = 0;
   SystemRun run;
   // Optional parts of World's protocol (engine/system.hpp above); empty: none.
+  std::function<void(const Model&)> check;
   std::function<void(const Model&, State&)> prepare;
   SystemRun setup;
   std::function<void(const Model&, State&, Scratch&)> restore;
@@ -52,6 +54,7 @@ struct SystemSpec {
 template <class S>
 SystemSpec make_system() {
   SystemSpec spec(std::string(S::name), S::reads, S::writes, &S::run);
+  if constexpr (requires { &S::check; }) spec.check = &S::check;
   if constexpr (requires { &S::prepare; }) spec.prepare = &S::prepare;
   if constexpr (requires { &S::setup; }) spec.setup = &S::setup;
   if constexpr (requires { &S::restore; }) spec.restore = &S::restore;

@@ -6,66 +6,6 @@
 
 namespace sandcell {
 
-void validate(const ServoSettings& servo) {
-  const auto fail = [](const std::string& key, double value, const std::string& allowed) {
-    throw std::invalid_argument("servo." + key + " = " + std::to_string(value) + ": " + allowed);
-  };
-  if (!(servo.gain > 0.0) || !std::isfinite(servo.gain)) fail("gain", servo.gain, "must be a finite value > 0 1/s");
-  if (!(servo.max_rate > 0.0) || !std::isfinite(servo.max_rate))
-    fail("max_rate", servo.max_rate, "must be a finite value > 0 1/s");
-  if (!(servo.max_rate_ratio >= 0.0) || !std::isfinite(servo.max_rate_ratio))
-    fail("max_rate_ratio", servo.max_rate_ratio, "must be a finite value >= 0 (0: max_rate alone)");
-  if (!(servo.integral_strain >= 0.0) || !std::isfinite(servo.integral_strain))
-    fail("integral_strain", servo.integral_strain, "must be a finite value >= 0 (0: integral_time alone)");
-  if (servo.interval < 1) fail("interval", servo.interval, "must be >= 1 step");
-  if (!(servo.integral_time >= 0.0) || !std::isfinite(servo.integral_time))
-    fail("integral_time", servo.integral_time, "must be a finite value >= 0 s (0: no integral term)");
-  if (!(servo.b >= 0.0 && servo.b <= 1.0)) fail("b", servo.b, "must be in [0, 1]");
-  for (int k = 0; k < 3; ++k)
-    if (!std::isfinite(servo.strain_rate[k]))
-      fail("strain_rate[" + std::to_string(k) + "]", servo.strain_rate[k], "must be finite");
-  if (!(servo.inertial_number >= 0.0) || !std::isfinite(servo.inertial_number))
-    fail("inertial_number", servo.inertial_number, "must be a finite value >= 0 (0: strain_rate as given)");
-  if (servo.inertial_number > 0.0) {
-    if (!(servo.d50 > 0.0) || !std::isfinite(servo.d50))
-      fail("d50", servo.d50, "must be > 0 m with inertial_number > 0");
-    if (!(servo.density > 0.0) || !std::isfinite(servo.density))
-      fail("density", servo.density, "must be > 0 kg/m^3 with inertial_number > 0");
-  }
-  if (servo.path == StressPath::custom) {
-    if (!servo.custom)
-      throw std::invalid_argument(
-          "servo.custom: empty; the custom path needs a function (PathInput -> PathTargets), "
-          "e.g. undrained_path(rate) or a CyclicPath");
-    return;  // the function decides each axis's control and target at every servo update
-  }
-  for (int k = 0; k < 3; ++k)
-    if (servo.control[k] == AxisControl::volume)
-      throw std::invalid_argument(
-          "servo.control[" + std::to_string(k) +
-          "] = volume: only a custom path's answer may hold the volume; allowed here: strain, stress");
-  const bool any_stress = servo.control[0] == AxisControl::stress || servo.control[1] == AxisControl::stress ||
-                          servo.control[2] == AxisControl::stress;
-  if (!any_stress) return;
-  switch (servo.path) {
-    case StressPath::isotropic:
-    case StressPath::constant_p_b:
-      if (!(servo.p > 0.0)) fail("p", servo.p, "must be > 0 Pa (compression positive)");
-      break;
-    case StressPath::constant_sigma3_b:
-      if (!(servo.sigma3 > 0.0)) fail("sigma3", servo.sigma3, "must be > 0 Pa (compression positive)");
-      break;
-    case StressPath::custom: break;
-    case StressPath::fixed:
-      for (int k = 0; k < 3; ++k)
-        if (servo.control[k] == AxisControl::stress && !(servo.target[k] > 0.0))
-          fail("target[" + std::to_string(k) + "]", servo.target[k], "must be > 0 Pa on a stress-controlled axis");
-      break;
-  }
-  if (servo.path != StressPath::fixed && servo.path != StressPath::isotropic && servo.control[0] != AxisControl::strain)
-    throw std::invalid_argument("servo.control[0] = stress: the constant-b paths drive axis 1 by strain");
-}
-
 void validate(const Model& model, const State& state) {
   if (!(model.dt > 0.0) || !std::isfinite(model.dt))
     throw std::invalid_argument("dt = " + std::to_string(model.dt) + ": must be a finite value > 0 s");
@@ -95,7 +35,6 @@ void validate(const Model& model, const State& state) {
   if (!(model.contact.rolling_damping >= 0.0))
     throw std::invalid_argument("contact.rolling_damping = " + std::to_string(model.contact.rolling_damping) +
                                 ": must be >= 0");
-  if (model.servo.enabled) validate(model.servo);
   for (std::size_t k = 0; k < state.particles.size(); ++k) {
     const Particles& p = state.particles;
     const auto fail = [&](const char* what, const std::string& value, const std::string& allowed) {
@@ -149,6 +88,8 @@ World::World(Model model, State state, std::vector<SystemSpec> systems, Executor
       exec_(exec),
       graph_(std::move(systems), exec_),
       batching_(can_batch(graph_)) {
+  for (std::size_t k = 0; k < graph_.size(); ++k)  // each system's own settings (e.g. the servo's)
+    if (graph_.system(k).check) graph_.system(k).check(model_);
   for (std::size_t k = 0; k < graph_.size(); ++k)
     if (graph_.system(k).prepare) graph_.system(k).prepare(model_, state_);
   if (!initial_forces) {

@@ -15,9 +15,6 @@ namespace sandcell {
 /// Checks the model and the initial state; throws std::invalid_argument naming the offending value.
 void validate(const Model& model, const State& state);
 
-/// Checks the servo settings (docs/physics.md section 6); throws std::invalid_argument naming the key.
-void validate(const ServoSettings& servo);
-
 /// A run that cannot continue (cell too narrow, instability): the message names the step, the
 /// particles and the quantity.
 struct SimulationError : std::runtime_error {

@@ -1,6 +1,7 @@
 #include "systems/path_watch.hpp"
 
 #include "systems/servo.hpp"
+#include "systems/stress_paths.hpp"
 
 #include <Eigen/Eigenvalues>
 
@@ -147,30 +148,26 @@ void PathWatch::judge(const PathRow& row) {
     worst_[k_path] = std::max(worst_[k_path], error);
     fail(q, error, tol_.stress, row);
   };
-  switch (servo_.path) {
-    case StressPath::constant_p_b: path_error("p", std::abs(p - servo_.p) / std::abs(servo_.p)); break;
-    case StressPath::constant_sigma3_b:
+  // What the path holds (systems/stress_paths.hpp): p or sigma3 on the b paths, else each
+  // stress-controlled axis's target; a custom path's targets are its function's, not checked here.
+  const StressPathSpec& spec = stress_path(servo_.path);
+  if (spec.has_b) {
+    if (spec.scale == PathScale::p)
+      path_error("p", std::abs(p - servo_.p) / std::abs(servo_.p));
+    else
       path_error("sigma3", std::abs(m(2, 2) - servo_.sigma3) / std::abs(servo_.sigma3));
-      break;
-    case StressPath::isotropic:
-    case StressPath::fixed: {
-      const Vec3 target = path_targets(servo_, m(0, 0));
-      const double scale = std::max(1e-300, servo_.path == StressPath::isotropic ? std::abs(servo_.p)
-                                                                              : target.cwiseAbs().maxCoeff());
-      static constexpr const char* names[3] = {"axis 1", "axis 2", "axis 3"};
-      for (int k = 0; k < 3; ++k)
-        if (servo_.control[k] == AxisControl::stress) path_error(names[k], std::abs(m(k, k) - target[k]) / scale);
-      break;
-    }
-    case StressPath::custom: break;
-  }
-  if (servo_.path == StressPath::constant_p_b || servo_.path == StressPath::constant_sigma3_b) {
     const double d = m(0, 0) - m(2, 2);
     if (d >= k_min_deviator * std::abs(p)) {
       const double error = std::abs((m(1, 1) - m(2, 2)) / d - servo_.b);
       worst_[k_b] = std::max(worst_[k_b], error);
       fail("b", error, tol_.b, row);
     }
+  } else if (spec.targets) {
+    const Vec3 target = spec.targets(servo_, m(0, 0));
+    const double scale = std::max(1e-300, path_scale(servo_));
+    static constexpr const char* names[3] = {"axis 1", "axis 2", "axis 3"};
+    for (int k = 0; k < 3; ++k)
+      if (servo_.control[k] == AxisControl::stress) path_error(names[k], std::abs(m(k, k) - target[k]) / scale);
   }
   const double rotation = principal_rotation_deg(m);
   worst_[k_rotation] = std::max(worst_[k_rotation], rotation);

@@ -1,6 +1,7 @@
 #include "systems/servo.hpp"
 
 #include "systems/homogenizer.hpp"
+#include "systems/stress_paths.hpp"
 
 #include <algorithm>
 #include <array>
@@ -10,38 +11,81 @@
 
 namespace sandcell {
 
-Vec3 path_targets(const ServoSettings& servo, double s1) {
-  switch (servo.path) {
-    case StressPath::fixed: return servo.target;
-    case StressPath::isotropic: return Vec3::Constant(servo.p);
-    case StressPath::constant_p_b: {
-      // From p = (s1 + s2 + s3)/3 and b = (s2 - s3)/(s1 - s3), solved for s2 and s3.
-      const double p = servo.p, b = servo.b;
-      return Vec3(s1, (3.0 * p * (1.0 - b) + (2.0 * b - 1.0) * s1) / (2.0 - b), (3.0 * p - (1.0 + b) * s1) / (2.0 - b));
-    }
-    case StressPath::constant_sigma3_b: {
-      const double s3 = servo.sigma3, b = servo.b;
-      return Vec3(s1, b * s1 + (1.0 - b) * s3, s3);
-    }
-    case StressPath::custom: break;  // the targets come from servo.custom (custom_strain_rates)
+void validate(const ServoSettings& servo) {
+  const auto fail = [](const std::string& key, double value, const std::string& allowed) {
+    throw std::invalid_argument("servo." + key + " = " + std::to_string(value) + ": " + allowed);
+  };
+  if (!(servo.gain > 0.0) || !std::isfinite(servo.gain)) fail("gain", servo.gain, "must be a finite value > 0 1/s");
+  if (!(servo.max_rate > 0.0) || !std::isfinite(servo.max_rate))
+    fail("max_rate", servo.max_rate, "must be a finite value > 0 1/s");
+  if (!(servo.max_rate_ratio >= 0.0) || !std::isfinite(servo.max_rate_ratio))
+    fail("max_rate_ratio", servo.max_rate_ratio, "must be a finite value >= 0 (0: max_rate alone)");
+  if (!(servo.integral_strain >= 0.0) || !std::isfinite(servo.integral_strain))
+    fail("integral_strain", servo.integral_strain, "must be a finite value >= 0 (0: integral_time alone)");
+  if (servo.interval < 1) fail("interval", servo.interval, "must be >= 1 step");
+  if (!(servo.integral_time >= 0.0) || !std::isfinite(servo.integral_time))
+    fail("integral_time", servo.integral_time, "must be a finite value >= 0 s (0: no integral term)");
+  if (!(servo.b >= 0.0 && servo.b <= 1.0)) fail("b", servo.b, "must be in [0, 1]");
+  for (int k = 0; k < 3; ++k)
+    if (!std::isfinite(servo.strain_rate[k]))
+      fail("strain_rate[" + std::to_string(k) + "]", servo.strain_rate[k], "must be finite");
+  if (!(servo.inertial_number >= 0.0) || !std::isfinite(servo.inertial_number))
+    fail("inertial_number", servo.inertial_number, "must be a finite value >= 0 (0: strain_rate as given)");
+  if (servo.inertial_number > 0.0) {
+    if (!(servo.d50 > 0.0) || !std::isfinite(servo.d50))
+      fail("d50", servo.d50, "must be > 0 m with inertial_number > 0");
+    if (!(servo.density > 0.0) || !std::isfinite(servo.density))
+      fail("density", servo.density, "must be > 0 kg/m^3 with inertial_number > 0");
   }
-  return servo.target;
+  const StressPathSpec& spec = stress_path(servo.path);
+  if (servo.path == StressPath::custom) {
+    if (!servo.custom)
+      throw std::invalid_argument(
+          "servo.custom: empty; the custom path needs a function (PathInput -> PathTargets), "
+          "e.g. undrained_path(rate) or a CyclicPath");
+    return;  // the function decides each axis's control and target at every servo update
+  }
+  for (int k = 0; k < 3; ++k)
+    if (servo.control[k] == AxisControl::volume)
+      throw std::invalid_argument(
+          "servo.control[" + std::to_string(k) +
+          "] = volume: only a custom path's answer may hold the volume; allowed here: strain, stress");
+  const bool any_stress = servo.control[0] == AxisControl::stress || servo.control[1] == AxisControl::stress ||
+                          servo.control[2] == AxisControl::stress;
+  if (!any_stress) return;
+  switch (spec.scale) {
+    case PathScale::p:
+      if (!(servo.p > 0.0)) fail("p", servo.p, "must be > 0 Pa (compression positive)");
+      break;
+    case PathScale::sigma3:
+      if (!(servo.sigma3 > 0.0)) fail("sigma3", servo.sigma3, "must be > 0 Pa (compression positive)");
+      break;
+    case PathScale::target:
+      for (int k = 0; k < 3; ++k)
+        if (servo.control[k] == AxisControl::stress && !(servo.target[k] > 0.0))
+          fail("target[" + std::to_string(k) + "]", servo.target[k], "must be > 0 Pa on a stress-controlled axis");
+      break;
+    case PathScale::none: break;
+  }
+  if (spec.axis1_by_strain && servo.control[0] != AxisControl::strain)
+    throw std::invalid_argument("servo.control[0] = stress: the " + std::string(spec.name) +
+                                " path drives axis 1 by strain");
+}
+
+void Servo::check(const Model& model) {
+  if (model.servo.enabled) validate(model.servo);
+}
+
+Vec3 path_targets(const ServoSettings& servo, double s1) {
+  const StressPathSpec& spec = stress_path(servo.path);
+  return spec.targets ? spec.targets(servo, s1) : servo.target;  // custom: its function decides (custom_strain_rates)
 }
 
 namespace {
 // The path's own stress scale: errors are normalized by |sigma*_k| (docs/physics.md section 6), floored at a
 // thousandth of this scale so a target passing through zero (constant p at eta near 3) cannot
 // divide by zero.
-double stress_scale(const ServoSettings& servo) {
-  switch (servo.path) {
-    case StressPath::isotropic:
-    case StressPath::constant_p_b: return std::abs(servo.p);
-    case StressPath::constant_sigma3_b: return std::abs(servo.sigma3);
-    case StressPath::fixed:
-    case StressPath::custom: break;
-  }
-  return servo.target.cwiseAbs().maxCoeff();
-}
+double stress_scale(const ServoSettings& servo) { return path_scale(servo); }
 }  // namespace
 
 namespace {

@@ -26,7 +26,13 @@ struct Servo {
   static constexpr ComponentMask reads = mask_of({Component::stress});
   static constexpr ComponentMask writes = mask_of({Component::cell});
   static void run(const Model& model, State& state, Scratch& scratch, Executor& exec);
+  /// The servo's settings, checked when a World is built (validate below).
+  static void check(const Model& model);
 };
+
+/// Checks the servo settings (docs/physics.md section 6; the path's own checks from its row in
+/// systems/stress_paths.cpp); throws std::invalid_argument naming the key, the value and what is allowed.
+void validate(const ServoSettings& servo);
 
 /// Target principal stresses (sigma1*, sigma2*, sigma3*), Pa, compression positive, of the path
 /// given the measured sigma1. sigma1* is meaningful only for the isotropic and fixed paths (axis 1

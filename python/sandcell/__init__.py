@@ -10,5 +10,5 @@ from ._sandcell import (  # noqa: F401
     PathFunction, PathInput, PathTargets, PathTolerance, PathWatch, Protocol, ResultsFile, ServoSettings,
     SimulationError, State, StressInvariants, TestSpec, World, __version__, append_row, derived_gain,
     finish_preparation, median_diameter, p0_tag, principal_rotation_deg, rayleigh_time, read_checkpoint,
-    sample_diameters, series_columns, shear_ratio, undrained_path, write_checkpoint,
+    sample_diameters, series_columns, shear_ratio, test_paths, undrained_path, write_checkpoint,
 )

@@ -9,6 +9,7 @@
 #include "systems/homogenizer.hpp"
 #include "systems/path_watch.hpp"
 #include "systems/servo.hpp"
+#include "systems/stress_paths.hpp"
 
 #include <pybind11/eigen.h>
 #include <pybind11/numpy.h>
@@ -48,11 +49,12 @@ struct Names {
   }
 };
 
-const Names<StressPath> k_paths{{{"fixed", StressPath::fixed},
-                                 {"isotropic", StressPath::isotropic},
-                                 {"constant_p_b", StressPath::constant_p_b},
-                                 {"constant_sigma3_b", StressPath::constant_sigma3_b},
-                                 {"custom", StressPath::custom}}};
+// The built-in paths' names: their rows in systems/stress_paths.cpp.
+const Names<StressPath> k_paths = [] {
+  Names<StressPath> n;
+  for (const StressPathSpec& s : stress_paths()) n.items.emplace_back(s.name.data(), s.id);
+  return n;
+}();
 const Names<AxisControl> k_controls{
     {{"strain", AxisControl::strain}, {"stress", AxisControl::stress}, {"volume", AxisControl::volume}}};
 const Names<TangentialModel> k_tangential{

@@ -2,6 +2,7 @@
 // builds the app's models from the app's config by the app's own rules instead of retyping them.
 #include "protocol/accuracy.hpp"
 #include "protocol/config.hpp"
+#include "protocol/paths.hpp"
 #include "protocol/protocol.hpp"
 #include "protocol/series.hpp"
 
@@ -152,6 +153,24 @@ void bind_protocol(py::module_& m) {
       py::arg("state"), "The prepared sample, its strains counted from here (a new State)");
   m.def("derived_gain", &derived_gain, py::arg("alpha"), py::arg("p"), py::arg("material"), py::arg("servo_time"),
         "The app's servo gain, 1/s: alpha (p/E*)^(2/3) / t_s, E* = E / (2 (1 - nu^2)) (docs/physics.md section 6)");
+  m.def(
+      "test_paths",
+      [] {
+        py::list out;
+        for (const TestPath& t : test_paths()) {
+          py::dict d;
+          d["name"] = std::string(t.name);
+          d["prefix"] = std::string(t.prefix);
+          d["has_b"] = t.has_b;
+          d["by_steps"] = t.by_steps;
+          d["inertial_number"] = t.inertial_number;
+          d["ramp"] = t.ramp;
+          d["description"] = std::string(t.description);
+          out.append(d);
+        }
+        return out;
+      },
+      "The paths a triaxial test can follow (tests.path; apps/triaxial/protocol/paths.cpp), one dict each");
   m.def("p0_tag", &p0_tag, py::arg("p0"), "'p0_500kPa': the tag of a p0 in the app's file names");
   m.def(
       "series_columns",

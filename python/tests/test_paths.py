@@ -93,10 +93,10 @@ def test_cyclic_undrained_stress_loading_liquefies_a_loose_sample(loose_sample):
 
 def constant_p_model(model, python):
     s = servo(model)
-    s.path, s.control, s.strain_rate, s.p, s.b = "constant_p_b", ["strain", "stress", "stress"], [5.0, 0, 0], P0, 0.5
+    s.path, s.control, s.strain_rate, s.p, s.b = "constant_p", ["strain", "stress", "stress"], [5.0, 0, 0], P0, 0.5
     if python:
         ref = sc.ServoSettings()
-        ref.path, ref.p, ref.b = "constant_p_b", P0, 0.5
+        ref.path, ref.p, ref.b = "constant_p", P0, 0.5
 
         def constant_p(inp):
             # The built-in formulas, restated (docs/physics.md section 6); axis 1 at 5 1/s.

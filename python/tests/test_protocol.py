@@ -81,3 +81,43 @@ def test_the_accuracy_watch_warns_once_per_indicator():
     w.check(m, 2)
     assert len(lines) <= 4 and all(line.startswith("job: warning: step 1") for line in lines)
     assert "overlap/R" in w.worst()
+
+
+def test_the_path_registry_is_one_list_for_the_app_and_the_analysis():
+    """tests.path names (apps/triaxial/protocol/paths.cpp) are the analysis's PATHS, in order."""
+    import sys
+    sys.path.insert(0, os.path.join(HERE, "..", "..", "apps", "analysis"))
+    from sandcell_analysis.results import PATHS
+    names = [p["name"] for p in sc.test_paths()]
+    assert tuple(names) == PATHS
+    assert {p["name"]: p["prefix"] for p in sc.test_paths()}["undrained"] == "u"
+
+
+def test_the_undrained_path_holds_the_volume_and_refuses_what_it_cannot_do():
+    """From TOML: constant volume (eps_v = 0 to round-off over 2 % of axial strain: the servo sets the
+    lateral rates so the volume after each update is the reference's, |eps_v| < 1e-9); a set inertial
+    number, a ramp or a b are refused naming the key."""
+    text = open(os.path.join(HERE, "small-undrained.toml")).read()
+    p = sc.Protocol.parse(text)
+    assert p.tests[0].name == "u-p0_500kPa" and p.tests[0].path == "undrained"
+    model = p.shear_model(0)
+    assert model.servo.path == "custom" and model.servo.enabled
+    with pytest.raises(sc.ConfigError, match="shear.inertial_number"):
+        sc.Protocol.parse(text.replace("strain_rate = 10.0", "inertial_number = 1e-3"))
+    with pytest.raises(sc.ConfigError, match="shear.ramp_strain"):
+        sc.Protocol.parse(text.replace("strain_rate = 10.0", "strain_rate = 10.0\nramp_strain = 0.001"))
+    with pytest.raises(sc.ConfigError, match="tests.b"):
+        sc.Protocol.parse(text.replace('path = "undrained"', 'path = "undrained"\nb = 0.5'))
+    prep = p.prepare_model(0.5e6)
+    world = sc.World(prep, p.cloud(prep), threads=1)
+    while True:
+        world.step_until(10**12, every=1000)
+        m = world.measure()
+        if max(abs(m.stress[k, k] - 0.5e6) / 0.5e6 for k in range(3)) < 0.01 and m.unbalanced < 0.01:
+            break
+    world = sc.World(model, p.start_test(0, sc.finish_preparation(world.state())), threads=1, initial_forces=False)
+    worst = 0.0
+    while world.measure().strain[0] < 0.02:
+        world.step_until(10**12, every=100, max_strain=0.02)
+        worst = max(worst, abs(world.measure().eps_v))
+    assert worst < 1e-9

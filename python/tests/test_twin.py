@@ -1,7 +1,9 @@
-"""The app's default test written in Python (examples/triaxial_default.py) against the app itself
-(`triaxial`), on a small config of the same form (small.toml): the prepared sample (a checkpoint:
-every particle and contact array, the cell, the clock) and the shear results file (every /series
-dataset but wall_time, every snapshot array and attribute) are compared bit for bit."""
+"""The app's test written in Python (examples/triaxial_default.py, two stage loops over
+sandcell.Protocol) against the app itself (`triaxial`), on small configs of the app's form: the
+default path (small.toml, constant p) and the undrained path chosen from TOML (small-undrained.toml):
+the prepared sample (a checkpoint: every particle and contact array, the cell, the clock) and the
+shear results file (every /series dataset but wall_time, every snapshot array and attribute) are
+compared bit for bit."""
 import os
 import subprocess
 import sys
@@ -11,9 +13,8 @@ import numpy as np
 import pytest
 
 HERE = os.path.dirname(os.path.abspath(__file__))
-CONFIG = os.path.join(HERE, "small.toml")
 EXAMPLE = os.path.join(HERE, "..", "examples", "triaxial_default.py")
-TEST = "p-b0.50-p0_500kPa"
+CASES = {"small.toml": "p-b0.50-p0_500kPa", "small-undrained.toml": "u-p0_500kPa"}
 
 
 def datasets(group, prefix=""):
@@ -34,21 +35,22 @@ def attributes(group, prefix=""):
     return out
 
 
-@pytest.fixture(scope="module")
-def runs(work_dir):
+@pytest.fixture(scope="module", params=sorted(CASES))
+def runs(work_dir, request):
     app = os.environ.get("SANDCELL_TRIAXIAL")
     if not app:
         pytest.skip("SANDCELL_TRIAXIAL not set: the triaxial app was not built (SANDCELL_BUILD_APPS)")
-    app_dir, py_dir = os.path.join(work_dir, "app"), os.path.join(work_dir, "py")
+    config = os.path.join(HERE, request.param)
+    app_dir, py_dir = (os.path.join(work_dir, request.param, d) for d in ("app", "py"))
     os.makedirs(py_dir, exist_ok=True)
-    subprocess.run([app, CONFIG, "--out", app_dir, "--overwrite", "--threads", "2"], check=True,
+    subprocess.run([app, config, "--out", app_dir, "--overwrite", "--threads", "2"], check=True,
                    stdout=subprocess.DEVNULL)
-    subprocess.run([sys.executable, EXAMPLE, CONFIG, py_dir], check=True)
-    return app_dir, py_dir
+    subprocess.run([sys.executable, EXAMPLE, config, py_dir], check=True)
+    return app_dir, py_dir, CASES[request.param]
 
 
 def test_prepared_sample_is_bitwise_the_apps(runs):
-    app, py = (h5py.File(os.path.join(d, "sample-p0_500kPa.h5")) for d in runs)
+    app, py = (h5py.File(os.path.join(d, "sample-p0_500kPa.h5")) for d in runs[:2])
     a, b = datasets(app), datasets(py)
     arrays = [k for k in a if k.startswith(("particles/", "contacts/"))]
     assert len(arrays) >= 20  # every particle and contact field of the registry
@@ -61,7 +63,7 @@ def test_prepared_sample_is_bitwise_the_apps(runs):
 
 
 def test_shear_results_are_bitwise_the_apps(runs):
-    app, py = (h5py.File(os.path.join(d, TEST + ".h5")) for d in runs)
+    app, py = (h5py.File(os.path.join(d, runs[2] + ".h5")) for d in runs[:2])
     a, b = datasets(app), datasets(py)
     assert sorted(a) == sorted(b)
     series = [k for k in a if k.startswith("series/")]

@@ -68,7 +68,7 @@ TEST_CASE(
     State s = test::jittered_lattice(model, 10, 2e-3, 1.00e-3, 1.03e-3, 0.02e-3, 1.0, 500.0, 7);
     if (c.servo) {
       model.servo.enabled = true;
-      model.servo.path = StressPath::constant_p_b;
+      model.servo.path = StressPath::constant_p;
       model.servo.control = {AxisControl::strain, AxisControl::stress, AxisControl::stress};
       model.servo.strain_rate = Vec3(20.0, 0.0, 0.0);
       model.servo.p = 1e6;

@@ -18,7 +18,7 @@ namespace {
 
 ServoSettings constant_p(double p, double b) {
   ServoSettings s;
-  s.path = StressPath::constant_p_b;
+  s.path = StressPath::constant_p;
   s.control = {AxisControl::strain, AxisControl::stress, AxisControl::stress};
   s.p = p;
   s.b = b;
@@ -27,7 +27,7 @@ ServoSettings constant_p(double p, double b) {
 
 ServoSettings constant_sigma3(double sigma3, double b) {
   ServoSettings s = constant_p(0.0, b);
-  s.path = StressPath::constant_sigma3_b;
+  s.path = StressPath::constant_sigma3;
   s.sigma3 = sigma3;
   return s;
 }

@@ -15,7 +15,7 @@ using namespace sandcell;
 
 TEST_CASE("servo path targets: constant p, constant b by hand") {
   ServoSettings s;
-  s.path = StressPath::constant_p_b;
+  s.path = StressPath::constant_p;
   s.p = 100.0;
   // b = 0 (triaxial compression): s2 = s3 = (3p - s1)/2. With s1 = 160: s2 = s3 = 70.
   s.b = 0.0;
@@ -36,7 +36,7 @@ TEST_CASE("servo path targets: constant p, constant b by hand") {
 
 TEST_CASE("servo path targets: constant sigma3, constant b by hand") {
   ServoSettings s;
-  s.path = StressPath::constant_sigma3_b;
+  s.path = StressPath::constant_sigma3;
   s.sigma3 = 50.0;
   for (double b : {0.0, 0.5, 1.0}) {
     s.b = b;
@@ -230,7 +230,7 @@ TEST_CASE("servo closed loop: constant p and constant b hold along the path") {
   const double p0 = 1e6;
   const Sample& base = compressed_sample(p0);
   for (double b : {0.0, 0.5, 1.0}) {
-    const Tracking t = shear(base, StressPath::constant_p_b, b, p0, 0.03);
+    const Tracking t = shear(base, StressPath::constant_p, b, p0, 0.03);
     MESSAGE("constant p, b = ", b, ": worst |dp|/p ", t.p, ", worst |db| ", t.b, " up to eps1 = ", t.eps1);
     CHECK(t.p < 0.02);  // the path's acceptance criteria: p within 2 %,
     CHECK(t.b < 0.02);  // b within 0.02, after the first 1 % of axial strain
@@ -241,7 +241,7 @@ TEST_CASE("servo closed loop: constant sigma3 and constant b hold along the path
   const double p0 = 1e6;
   const Sample& base = compressed_sample(p0);
   for (double b : {0.0, 0.5}) {
-    const Tracking t = shear(base, StressPath::constant_sigma3_b, b, p0, 0.03);
+    const Tracking t = shear(base, StressPath::constant_sigma3, b, p0, 0.03);
     MESSAGE("constant sigma3, b = ", b, ": worst |dsigma3|/sigma3 ", t.s3, ", worst |db| ", t.b);
     CHECK(t.s3 < 0.02);  // sigma3 within 2 % after the first 1 % of axial strain
     CHECK(t.b < 0.02);
@@ -254,8 +254,8 @@ TEST_CASE("servo closed loop: the integral term removes the lag of the P law") {
   // must remove most of it. Measured values are printed below.
   const double p0 = 1e6;
   const Sample& base = compressed_sample(p0);
-  const Tracking p_law = shear(base, StressPath::constant_p_b, 0.0, p0, 0.03, false, 50.0);
-  const Tracking pi_law = shear(base, StressPath::constant_p_b, 0.0, p0, 0.03, true, 50.0);
+  const Tracking p_law = shear(base, StressPath::constant_p, 0.0, p0, 0.03, false, 50.0);
+  const Tracking pi_law = shear(base, StressPath::constant_p, 0.0, p0, 0.03, true, 50.0);
   MESSAGE("constant p, b = 0, g = 50/s: mean (p - p0)/p0: P ", p_law.mean_p, ", PI ", pi_law.mean_p);
   REQUIRE(std::abs(p_law.mean_p) > 2e-3);  // the P law lags visibly, or the comparison says nothing
   // PI below a fifth of the P lag: the integral (T_i = 1000 dt, ~0.1 % of the 3 % run) has
@@ -269,7 +269,7 @@ TEST_CASE("servo: the cap follows the axial rate (max_rate_ratio), the integral 
   // measured p; sigma3 measured 40 % high asks axis 3 for g x 0.4 = 400 /s of extension.
   ServoSettings s;
   s.enabled = true;
-  s.path = StressPath::constant_sigma3_b;
+  s.path = StressPath::constant_sigma3;
   s.control = {AxisControl::strain, AxisControl::stress, AxisControl::stress};
   s.sigma3 = 1e6;
   s.b = 1.0;

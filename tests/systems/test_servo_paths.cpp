@@ -123,7 +123,7 @@ TEST_CASE("custom path: a function restating constant p / constant b runs bitwis
   Sample s = compressed(p0);
   ServoSettings& v = s.model.servo;
   v = base_servo();
-  v.path = StressPath::constant_p_b;
+  v.path = StressPath::constant_p;
   v.control = {AxisControl::strain, AxisControl::stress, AxisControl::stress};
   v.strain_rate = Vec3(1.0, 0.0, 0.0);
   v.p = p0;

@@ -15,8 +15,9 @@ from .m_theta import m_theta, mohr_coulomb_M
 from .reference import STUDY
 from .results import b_key, read_columns, read_job
 
-PATH_LABEL = {"constant_p": "constant p", "constant_sigma3": "constant sigma3", "strain": "strain"}
-PATH_MARKER = {"constant_p": "o", "constant_sigma3": "s", "strain": "^"}
+PATH_LABEL = {"constant_p": "constant p", "constant_sigma3": "constant sigma3", "strain": "strain",
+              "undrained": "undrained"}
+PATH_MARKER = {"constant_p": "o", "constant_sigma3": "s", "strain": "^", "undrained": "D"}
 
 
 def pyplot():

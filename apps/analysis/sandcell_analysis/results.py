@@ -16,7 +16,7 @@ import numpy as np  # noqa: E402
 from .m_theta import lode_from_b  # noqa: E402
 
 NAN = float("nan")
-PATHS = ("constant_p", "constant_sigma3", "strain")  # the loading paths, in the order of the tables
+PATHS = ("constant_p", "constant_sigma3", "strain", "undrained")  # the app's tests.path names (protocol/paths.cpp)
 
 
 class InputError(Exception):

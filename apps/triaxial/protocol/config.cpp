@@ -1,6 +1,7 @@
 #include "protocol/config.hpp"
 
 #include "protocol/critical.hpp"
+#include "protocol/paths.hpp"
 #include "protocol/text.hpp"
 #include "systems/contact_pass.hpp"
 
@@ -166,14 +167,7 @@ class Section {
 
 }  // namespace
 
-const char* path_name(ShearPath path) {
-  switch (path) {
-    case ShearPath::constant_p: return "constant_p";
-    case ShearPath::constant_sigma3: return "constant_sigma3";
-    case ShearPath::strain: return "strain";
-  }
-  return "?";
-}
+const char* path_name(ShearPath path) { return test_path(path).name.data(); }
 
 namespace {
 
@@ -400,16 +394,10 @@ void check_contact_overlap(Section& s, const Material& mat, const std::vector<do
 std::vector<ShearPath> parse_paths(Section& s, const std::vector<std::string>& names) {
   std::vector<ShearPath> parsed;
   for (std::size_t k = 0; k < names.size(); ++k) {
-    const std::string& n = names[k];
-    if (n == "constant_p")
-      parsed.push_back(ShearPath::constant_p);
-    else if (n == "constant_sigma3")
-      parsed.push_back(ShearPath::constant_sigma3);
-    else if (n == "strain")
-      parsed.push_back(ShearPath::strain);
+    if (const TestPath* p = find_test_path(names[k]))
+      parsed.push_back(p->id);
     else
-      s.fail("path[" + std::to_string(k) + "]", "\"" + n + "\"",
-             "allowed: \"constant_p\" \"constant_sigma3\" \"strain\"");
+      s.fail("path[" + std::to_string(k) + "]", "\"" + names[k] + "\"", "allowed: " + test_path_names());
   }
   return parsed;
 }
@@ -420,17 +408,17 @@ std::vector<TestSpec> campaign(const std::vector<double>& p0, const std::vector<
   std::vector<TestSpec> tests;
   for (double p : p0)
     for (ShearPath path : paths)
-      for (double bv : (path == ShearPath::strain ? std::vector<double>{0.0} : b)) {
+      for (double bv : (test_path(path).has_b ? b : std::vector<double>{0.0})) {
         TestSpec t;
         t.path = path;
         t.p0 = p;
         t.b = bv;
+        const std::string prefix(test_path(path).prefix);
         char name[96];
-        if (path == ShearPath::strain)
-          std::snprintf(name, sizeof name, "strain-p0_%gkPa", p / 1e3);
+        if (test_path(path).has_b)
+          std::snprintf(name, sizeof name, "%s-b%.2f-p0_%gkPa", prefix.c_str(), bv, p / 1e3);
         else
-          std::snprintf(name, sizeof name, "%s-b%.2f-p0_%gkPa", path == ShearPath::constant_p ? "p" : "s3", bv,
-                        p / 1e3);
+          std::snprintf(name, sizeof name, "%s-p0_%gkPa", prefix.c_str(), p / 1e3);
         t.name = name;
         bool duplicate = false;
         for (const TestSpec& other : tests) duplicate = duplicate || other.name == t.name;
@@ -450,13 +438,20 @@ void parse_tests(const toml::table& root, const std::string& source, Config& c) 
   s.integer("parallel", c.parallel, 1, 1024, "must be an integer in [1, 1024]");
   s.check_unknown();
   if (p0.empty()) p0 = {0.5e6};
+  const bool b_given = !b.empty();
   if (b.empty()) b = {0.0};
   for (std::size_t k = 0; k < p0.size(); ++k)
     if (!(p0[k] > 0.0) || !std::isfinite(p0[k])) s.fail("p0[" + std::to_string(k) + "]", num(p0[k]), "must be > 0 Pa");
   for (std::size_t k = 0; k < b.size(); ++k)
     if (!(b[k] >= 0.0 && b[k] <= 1.0)) s.fail("b[" + std::to_string(k) + "]", num(b[k]), "must be in [0, 1]");
   check_contact_overlap(s, c.material, p0);
-  c.tests = campaign(p0, parse_paths(s, path_names), b);
+  const std::vector<ShearPath> parsed = parse_paths(s, path_names);
+  // A b no test follows would have no effect: refused.
+  bool any_b = false;
+  for (ShearPath path : parsed) any_b = any_b || test_path(path).has_b;
+  if (b_given && !any_b)
+    s.fail("b", num(b.front()), "no path of tests.path holds b; allowed: leave it out, or a path with b");
+  c.tests = campaign(p0, parsed, b);
 }
 
 // [output]: the series, snapshot, checkpoint and flush intervals, and the plot.
@@ -493,6 +488,13 @@ void check_shear_for_tests(const Config& c, const std::string& source) {
                       ": shear.strain_rate and shear.inertial_number: neither is given; the stress paths need "
                       "exactly one (e.g. strain_rate = 1.0 in 1/s, or inertial_number = 2e-3)");
   for (const TestSpec& t : c.tests) {
+    const TestPath& path = test_path(t.path);
+    if (!path.by_steps && !path.inertial_number && c.shear.inertial_number > 0.0)
+      throw ConfigError(source + ": shear.inertial_number = " + num(c.shear.inertial_number) + ": path \"" +
+                        std::string(path.name) + "\" compresses at a fixed axial rate; allowed: shear.strain_rate");
+    if (!path.by_steps && !path.ramp && c.shear.ramp_strain > 0.0)
+      throw ConfigError(source + ": shear.ramp_strain = " + num(c.shear.ramp_strain) + ": path \"" +
+                        std::string(path.name) + "\" has no ramp; allowed: 0");
     if (t.path == ShearPath::strain && c.shear.steps == 0)
       throw ConfigError(source + ": shear.steps = 0: path \"strain\" needs a number of steps >= 1");
     if (t.path == ShearPath::strain && c.shear.ramp_strain > 0.0)

@@ -38,7 +38,8 @@ struct PrepareConfig {
   double dt_fraction = 0.0;  // -, time step of the preparation / Rayleigh time (0: time.dt_fraction)
 };
 
-enum class ShearPath { constant_p, constant_sigma3, strain };
+/// The path of a test (tests.path); its name and needs are its row in protocol/paths.cpp.
+enum class ShearPath { constant_p, constant_sigma3, strain, undrained };
 
 struct ShearConfig {
   double strain_rate = 0.0;          // 1/s, axial (axis 1) compression rate of the stress paths (0: not given)

@@ -5,6 +5,7 @@
 #include "engine/generate.hpp"
 #include "engine/world.hpp"
 #include "systems/homogenizer.hpp"
+#include "systems/servo.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -199,7 +200,15 @@ Model shear_model(const Protocol& plan, const TestSpec& test) {
   ServoSettings& s = m.servo;
   if (test.path == ShearPath::strain) return m;  // rates set once on the cell; no servo scheduled
   s.enabled = true;
-  s.path = test.path == ShearPath::constant_p ? StressPath::constant_p_b : StressPath::constant_sigma3_b;
+  switch (test.path) {
+    case ShearPath::constant_p: s.path = StressPath::constant_p; break;
+    case ShearPath::constant_sigma3: s.path = StressPath::constant_sigma3; break;
+    case ShearPath::undrained:  // axis 1 at the axial rate, axes 2 and 3 at eps_v = 0 (config: strain_rate only)
+      s.path = StressPath::custom;
+      s.custom = undrained_path(h.strain_rate);
+      break;
+    case ShearPath::strain: break;
+  }
   s.control = {AxisControl::strain, AxisControl::stress, AxisControl::stress};
   const double rate0 = axial_rate(plan, test.p0);
   if (h.inertial_number > 0.0) {

@@ -1,0 +1,46 @@
+#include "protocol/paths.hpp"
+
+#include <iterator>
+
+namespace sandcell::triaxial {
+
+namespace {
+
+constexpr TestPath k_paths[] = {
+    {ShearPath::constant_p, "constant_p", "p", true, false, true, true,
+     "axis 1 compressed at the axial rate; axes 2 and 3 hold the mean stress p0 and b (systems/stress_paths.cpp)"},
+    {ShearPath::constant_sigma3, "constant_sigma3", "s3", true, false, true, true,
+     "axis 1 compressed at the axial rate; axes 2 and 3 hold sigma3 = p0 and b"},
+    {ShearPath::strain, "strain", "strain", false, true, false, false,
+     "every axis at its rate of shear.strain_rates for shear.steps steps; no servo"},
+    {ShearPath::undrained, "undrained", "u", false, false, false, false,
+     "constant volume: axis 1 compressed at shear.strain_rate, axes 2 and 3 at the common rate that keeps eps_v = 0 "
+     "(the excess pore pressure of the saturated sample is u = p0 - p')"},
+};
+
+constexpr bool in_enum_order() {
+  for (std::size_t k = 0; k < std::size(k_paths); ++k)
+    if (static_cast<std::size_t>(k_paths[k].id) != k) return false;
+  return true;
+}
+static_assert(in_enum_order(), "k_paths: one row per ShearPath, in enum order");
+
+}  // namespace
+
+std::span<const TestPath> test_paths() { return k_paths; }
+
+const TestPath& test_path(ShearPath path) { return k_paths[static_cast<std::size_t>(path)]; }
+
+const TestPath* find_test_path(std::string_view name) {
+  for (const TestPath& p : k_paths)
+    if (p.name == name) return &p;
+  return nullptr;
+}
+
+std::string test_path_names() {
+  std::string out;
+  for (const TestPath& p : k_paths) out += (out.empty() ? "\"" : " \"") + std::string(p.name) + "\"";
+  return out;
+}
+
+}  // namespace sandcell::triaxial

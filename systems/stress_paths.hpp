@@ -1,0 +1,46 @@
+#pragma once
+// The servo's built-in stress paths, one row each (docs/physics.md section 6): the one name a path
+// has everywhere (the servo, the triaxial app's tests.path and results files, the analysis, Python),
+// the setting that scales its errors, whether it has a b, and its targets. A new built-in path is
+// an enum value in engine/model.hpp plus a row in stress_paths.cpp; the servo, its validation, the
+// path watchdog and the Python names read the row.
+#include "engine/model.hpp"
+
+#include <span>
+#include <string>
+#include <string_view>
+
+namespace sandcell {
+
+/// The setting a path's stress targets are relative to, which must be > 0 on a stress-controlled path.
+enum class PathScale {
+  target,  // the per-axis targets (`fixed`)
+  p,       // servo.p
+  sigma3,  // servo.sigma3
+  none,    // the custom path's function decides
+};
+
+struct StressPathSpec {
+  StressPath id;
+  std::string_view name;         // e.g. "constant_p"
+  std::string_view description;  // the formulas, one line
+  PathScale scale;
+  bool has_b;             // targets follow b = (s2 - s3)/(s1 - s3), the watchdog checks b
+  bool axis1_by_strain;   // axis 1 must be strain controlled (its target is the measured s1)
+  /// Target principal stresses (s1*, s2*, s3*), Pa, compression positive, from the measured s1;
+  /// null for `custom`.
+  Vec3 (*targets)(const ServoSettings& servo, double s1);
+};
+
+/// Every built-in path, in enum order.
+std::span<const StressPathSpec> stress_paths();
+/// The row of a path.
+const StressPathSpec& stress_path(StressPath path);
+/// The row of a path name, or nullptr.
+const StressPathSpec* find_stress_path(std::string_view name);
+/// The names, comma separated (for messages).
+std::string stress_path_names();
+/// The value of the setting that scales the path's errors (|p|, |sigma3|, or the largest |target|).
+double path_scale(const ServoSettings& servo);
+
+}  // namespace sandcell
