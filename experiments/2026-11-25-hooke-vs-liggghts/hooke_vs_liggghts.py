@@ -3,8 +3,10 @@
 analytic solution, against a step-by-step Python replica of LIGGGHTS' algorithm, and (optionally)
 against sandcell.
 
-    /usr/bin/python3 tools/hooke_vs_liggghts.py [--sandcell BIN] [--steps-per-contact 50]
-        [--fine 500,5000] [--csv docs/hooke-vs-liggghts.csv] [--png docs/hooke-vs-liggghts.png]
+    /usr/bin/python3 experiments/2026-11-25-hooke-vs-liggghts/hooke_vs_liggghts.py [--sandcell BIN]
+        [--steps-per-contact 50] [--fine 500,5000] [--csv FILE] [--png FILE]
+
+(--csv and --png default to hooke-vs-liggghts.csv and .png beside this script.)
 
 Needs the Debian packages liggghts, python3-numpy and python3-matplotlib.
 
@@ -63,7 +65,7 @@ about y, f1x/f1z = total force on sphere 1 at the end of the step (the contact f
 columns: t,x1,x2,v1x,v2x; z1,z2,v1z,v2z,w1y,w2y are needed for oblique scenes (VT != 0); f1x,f1z
 are optional (used for the force curves of the figure). Columns may come in any order; lines
 starting with '#' and anything on stderr are ignored; a non-zero exit status is an error. This is
-exactly what tools/hooke/collision.in makes LIGGGHTS print (there space-separated), so the two
+exactly what collision.in (beside this script) makes LIGGGHTS print (there space-separated), so the two
 tables can be compared row by row.
 
 With no --sandcell the script compares LIGGGHTS with the analytic solution and with the replica
@@ -79,9 +81,8 @@ import tempfile
 
 import numpy as np
 
-HERE = os.path.dirname(os.path.abspath(__file__))
-ROOT = os.path.dirname(HERE)
-INPUT = os.path.join(HERE, "hooke", "collision.in")
+HERE = os.path.dirname(os.path.abspath(__file__))  # the experiment's folder
+INPUT = os.path.join(HERE, "collision.in")
 COLUMNS = ["t", "x1", "x2", "z1", "z2", "v1x", "v2x", "v1z", "v2z", "w1y", "w2y", "f1x", "f1z"]
 
 BASE = dict(R=1e-3, rho=2650.0, E=7e10, nu=0.3, e=0.9, mu=0.5, vn=1.0, vt=0.0, vchar=1.0)
@@ -325,8 +326,8 @@ def main():
     ap.add_argument("--fine", default="500,5000",
                     help="more LIGGGHTS runs at dt = t_c / each of these, for the convergence "
                          "(comma-separated; '' for none)")
-    ap.add_argument("--csv", default=os.path.join(ROOT, "docs", "hooke-vs-liggghts.csv"))
-    ap.add_argument("--png", default=os.path.join(ROOT, "docs", "hooke-vs-liggghts.png"))
+    ap.add_argument("--csv", default=os.path.join(HERE, "hooke-vs-liggghts.csv"))
+    ap.add_argument("--png", default=os.path.join(HERE, "hooke-vs-liggghts.png"))
     args = ap.parse_args()
     if shutil.which("liggghts") is None:
         sys.exit("liggghts not installed: apt-get install liggghts")
