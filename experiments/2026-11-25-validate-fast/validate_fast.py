@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
-"""Tabulates the fast-protocol validation of tools/validate-fast.sh.
+"""Tabulates the fast-protocol validation of run.sh (beside this script).
 
-    validate_fast.py WORKDIR [--out DIR]
+    PYTHONPATH=apps/analysis validate_fast.py WORKDIR [--out DIR]
 
 For each test folder in WORKDIR (paper-*, fast-s<seed>-*): peak q/p and the axial strain at it,
 critical q/p and e (means over the last 5 % of axial strain), the largest dilation rate -d eps_v /
@@ -14,13 +14,11 @@ import argparse
 import csv
 import glob
 import os
-import sys
 
 import h5py
 import numpy as np
 
-sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "apps", "triaxial"))
-from study import slope_max_dilation  # noqa: E402
+from sandcell_analysis.dilatancy import slope_max_dilation
 
 WINDOW = 0.05
 METRICS = [("peak_eta", "peak q/p", "%.4f"), ("peak_strain", "eps1 at peak", "%.4f"), ("crit_eta", "critical q/p", "%.4f"),
@@ -67,8 +65,8 @@ def main():
         for name, m in runs.items():
             w.writerow([name] + [m[k] for k in keys])
     lines = ["# Fast protocol against the paper's, 19,436 spheres", "",
-             "Every run: `tools/validate-fast.sh` (the commands it runs are in its header); this table: "
-             "`tools/validate_fast.py WORKDIR --out docs/validate-fast`.", "",
+             "Every run: `experiments/2026-11-25-validate-fast/run.sh` (the commands it runs are in its header); "
+             "this table: `validate_fast.py WORKDIR --out experiments/2026-11-25-validate-fast`.", "",
              "| run | peak q/p | eps1 at peak | critical q/p | critical e | max -d | final eps1 | steps | wall s | mean I (axial) |",
              "|---|---|---|---|---|---|---|---|---|---|"]
     for name, m in runs.items():
@@ -90,7 +88,7 @@ def main():
             sd = float(np.std([s[key] for s in seeds], ddof=1)) if len(seeds) >= 2 else float("nan")
             cells.append(f"{fmt % err} ({fmt % sd}, {len(seeds)} seeds)")
         lines.append(f"| {cond} | " + " | ".join(cells) + f" | {paper['steps'] / fast['steps']:.1f} | {paper['wall'] / fast['wall']:.1f} |")
-    # The table of docs/reproducing-the-study.md: per condition and measure, the paper run, the fast run on its sample,
+    # The table of the README (and docs/reproducing-the-study.md): per condition and measure, the paper run, the fast run on its sample,
     # the error, and the fast protocol's seed-to-seed standard deviation.
     lines += ["", "| test | measure | paper protocol | fast, same sample | error | seed scatter (std, fast) |",
               "|---|---|---|---|---|---|"]

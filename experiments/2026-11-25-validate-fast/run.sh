@@ -7,13 +7,14 @@
 #      paper.toml (the paper's rate, 1 /s, dt = 0.2 t_R) and with paper-fast.toml;
 #   3. prepares seeds 2018 and 2019 the same way and shears the same two tests fast (the
 #      seed-to-seed scatter the errors stand against);
-#   4. tabulates (tools/validate_fast.py): peak q/p, critical q/p and e (means over the last 5 % of
+#   4. tabulates (validate_fast.py, beside this script): peak q/p, critical q/p and e (means over the last 5 % of
 #      axial strain), the largest dilation rate and the strain at the peak.
 # Two jobs at a time with one thread each. Every stage resumes (--resume): rerun the same command
 # after an interruption. About 1.5 h on 2 cores.
-#   tools/validate-fast.sh [TRIAXIAL] [WORKDIR]
+#   experiments/2026-11-25-validate-fast/run.sh [TRIAXIAL] [WORKDIR]
 set -euo pipefail
-here="$(cd "$(dirname "$0")/.." && pwd)"
+experiment="$(cd "$(dirname "$0")" && pwd)"
+here="$(cd "$experiment/../.." && pwd)"  # the repository
 triaxial="${1:-$here/build/release/apps/triaxial/triaxial}"
 work="${2:-$here/results/validate-fast}"
 configs="$here/apps/triaxial/configs"
@@ -61,4 +62,4 @@ for seed in 2018 2019; do
   wait $a; wait $b
 done
 echo "$(date +%T) table"
-/usr/bin/python3 "$here/tools/validate_fast.py" "$work"
+PYTHONPATH="$here/apps/analysis" /usr/bin/python3 "$experiment/validate_fast.py" "$work"
