@@ -6,8 +6,11 @@ that m is not determined, and every (d0, m) along it fits the points about as we
 the study's own constants (d0 = 0.619, m = 4.570) and with m fixed at 4.570 (d0 refitted). Writes
 profile.csv, constants.csv and dilatancy-profile.png.
 
-    tools/dilatancy_profile.py NAME=CAMPAIGN_DIR [NAME=DIR ...] [--docs docs/calibration/dilatancy-profile]
+    $X/dilatancy_profile.py NAME=CAMPAIGN_DIR [NAME=DIR ...] [--docs $X/dilatancy-profile]
         [--plastic]
+
+(From the repository root, with X=experiments/2026-11-25-calibration and PYTHONPATH=apps/analysis: the script
+imports sandcell_analysis. DOCS defaults to the folder named above, beside this script.)
 
 --plastic: d from plastic increments, d eps_v^p / d eps_q^p. On a constant-p path the elastic
 volumetric increment is zero, and the elastic deviatoric strain is (q - q0) / 3G, with 3G the
@@ -17,16 +20,15 @@ test. The points are then made exactly as `triaxial analyze` makes them from tot
 import argparse
 import csv
 import os
-import sys
 
 import numpy as np
 
-ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-sys.path.insert(0, os.path.join(ROOT, "apps", "analysis"))
-from sandcell_analysis.analyze import analyze_tests, parse_args  # noqa: E402
-from sandcell_analysis.csl import csl_e  # noqa: E402
-from sandcell_analysis.dilatancy import dilatancy_series  # noqa: E402
-from sandcell_analysis.results import b_key, collect_files, read_test  # noqa: E402
+from sandcell_analysis.analyze import analyze_tests, parse_args
+from sandcell_analysis.csl import csl_e
+from sandcell_analysis.dilatancy import dilatancy_series
+from sandcell_analysis.results import b_key, collect_files, read_test
+
+HERE = os.path.dirname(os.path.abspath(__file__))  # the experiment's folder: the tables and figures
 
 STUDY_D0, STUDY_M = 0.619, 4.570
 
@@ -76,7 +78,7 @@ def misfit(pts, M, m, d0=None):
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("campaigns", nargs="+", help="NAME=DIR")
-    ap.add_argument("--docs", default=os.path.join(ROOT, "docs", "calibration", "dilatancy-profile"))
+    ap.add_argument("--docs", default=os.path.join(HERE, "dilatancy-profile"))
     ap.add_argument("--plastic", action="store_true", help="d from plastic strain increments")
     args = ap.parse_args()
     grid = np.linspace(-2.0, 30.0, 161)

@@ -5,8 +5,11 @@ protocol, constant p, b = 0, p0 = 0.5, 2, 8 MPa) at each E and seed, with the fr
 Writes csl-vs-young.csv (one row per test) and prints, per E, the mean and standard error over
 seeds of e_c at each p0 and of the drop e_c(0.5 MPa) - e_c(8 MPa).
 
-    tools/csl_vs_young.py [--young 70e9,280e9] [--seeds 1,2,3,4] [--friction 0.35]
-        [--rolling-friction 0.064] [--out results/csl-vs-young] [--docs docs/calibration/csl-vs-young]
+    $X/csl_vs_young.py [--young 70e9,280e9] [--seeds 1,2,3,4] [--friction 0.35]
+        [--rolling-friction 0.064] [--out results/csl-vs-young] [--docs $X/csl-vs-young]
+
+(From the repository root, with X=experiments/2026-11-25-calibration and PYTHONPATH=apps/analysis: the script
+imports sandcell_analysis. DOCS defaults to the folder named above, beside this script.)
 
 Resumable: a campaign whose tests are all done is not run again; each runs in
 OUT/runs/E<GPa>GPa-seed<S>, as `triaxial calibrate` runs its points.
@@ -15,14 +18,14 @@ import argparse
 import csv
 import json
 import os
-import sys
 import tomllib
 
 import numpy as np
 
-ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-sys.path.insert(0, os.path.join(ROOT, "apps", "analysis"))
-from sandcell_analysis.calibrate import run_point  # noqa: E402
+from sandcell_analysis.calibrate import run_point
+
+HERE = os.path.dirname(os.path.abspath(__file__))  # the experiment's folder: the tables and figures
+ROOT = os.path.dirname(os.path.dirname(HERE))  # the repository
 
 
 def main():
@@ -32,7 +35,7 @@ def main():
     ap.add_argument("--friction", type=float, default=0.35)
     ap.add_argument("--rolling-friction", type=float, default=0.064)
     ap.add_argument("--out", default="results/csl-vs-young")
-    ap.add_argument("--docs", default=os.path.join(ROOT, "docs", "calibration", "csl-vs-young"))
+    ap.add_argument("--docs", default=os.path.join(HERE, "csl-vs-young"))
     ap.add_argument("--threads", type=int, default=2)
     ap.add_argument("--triaxial", default=os.path.join(ROOT, "build", "release", "apps", "triaxial", "triaxial"))
     args = ap.parse_args()

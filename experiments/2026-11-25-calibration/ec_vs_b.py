@@ -10,10 +10,13 @@ For each test, the void ratio and q/p averaged over windows of +-0.02 of eps_q a
 0.15, ..., 0.6; for each (size, mu_r, p0), the paired gap e(b = 1) - e(b = 0) of each seed and
 its mean and standard error over the seeds.
 
-    tools/ec_vs_b.py [--count 1000] [--seeds 1,2,3,4,5,6,7,8] [--mu-r 0.064] [--p0 2e6]
+    $X/ec_vs_b.py [--count 1000] [--seeds 1,2,3,4,5,6,7,8] [--mu-r 0.064] [--p0 2e6]
         [--friction MU] [--rolling MODEL] [--b1-inertial I]
-        [--out results/ec-vs-b] [--docs docs/calibration/ec-vs-b] [--threads 2]
-    tools/ec_vs_b.py --calibration results/calibrate-full/runs.csv --docs docs/calibration/full
+        [--out results/ec-vs-b] [--docs $X/ec-vs-b] [--threads 2]
+    $X/ec_vs_b.py --calibration results/calibrate-full/runs.csv --docs $X/full
+
+(From the repository root, with X=experiments/2026-11-25-calibration and PYTHONPATH=apps/analysis: the script
+imports sandcell_analysis. DOCS defaults to the folder named above, beside this script.)
 
 --b1-inertial shears only the b = 1 test at another inertial number (its b = 0 partner is reused):
 at b = 1 the deviatoric strain grows about twice as fast as eps_1, so I / 2 gives both tests the
@@ -35,10 +38,11 @@ import tomllib
 
 import numpy as np
 
-ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-sys.path.insert(0, os.path.join(ROOT, "apps", "analysis"))
-from sandcell_analysis.calibrate import run_point  # noqa: E402
-from sandcell_analysis.results import read_columns  # noqa: E402
+from sandcell_analysis.calibrate import run_point
+from sandcell_analysis.results import read_columns
+
+HERE = os.path.dirname(os.path.abspath(__file__))  # the experiment's folder: the tables and figures
+ROOT = os.path.dirname(os.path.dirname(HERE))  # the repository
 
 EPS_Q = np.round(np.arange(0.1, 0.6001, 0.05), 3)
 HALF_WINDOW = 0.02  # eps_q; at 1,000 spheres e fluctuates by ~0.005 over 0.01 of eps_q at the critical state
@@ -233,7 +237,7 @@ def main():
     ap.add_argument("--mu-r", default="0.064")
     ap.add_argument("--p0", default="2e6")
     ap.add_argument("--out", default="results/ec-vs-b")
-    ap.add_argument("--docs", default=os.path.join(ROOT, "docs", "calibration", "ec-vs-b"))
+    ap.add_argument("--docs", default=os.path.join(HERE, "ec-vs-b"))
     ap.add_argument("--friction", type=float, help="material.friction of both tests (default: the config's 0.35)")
     ap.add_argument("--rolling", help="contact.rolling of both tests (default: the config's epsd2)")
     ap.add_argument("--b1-inertial", type=float, help="shear.inertial_number of the b = 1 test only")

@@ -5,9 +5,12 @@ b = 0, 0.25, 0.5, 0.75, 1) per rolling model and rolling friction, each analysed
 `triaxial analyze`; writes results.csv (one row per test), trend.csv (Spearman rho(b, -min d) per
 campaign, the study's criterion being rho >= +0.8), dilation-vs-b.png and README-ready tables.
 
-    tools/dilation_vs_b.py [--out results/dilation-vs-b] [--docs docs/calibration/dilation-vs-b]
+    $X/dilation_vs_b.py [--out results/dilation-vs-b] [--docs $X/dilation-vs-b]
         [--mu-r 0.05,0.1,0.2,0.4] [--rolling epsd2,epsd,cdt] [--threads 2]
-    tools/dilation_vs_b.py --campaign results/paper-fast [--campaign ...] [--docs ...]
+    $X/dilation_vs_b.py --campaign results/paper-fast [--campaign ...] [--docs ...]
+
+(From the repository root, with X=experiments/2026-11-25-calibration and PYTHONPATH=apps/analysis: the script
+imports sandcell_analysis. DOCS defaults to the folder named above, beside this script.)
 
 Both measures of the largest dilation rate are reported: -d eps_v / d eps_q (the dilatancy of the
 Li-Dafalias law, what `triaxial analyze` tests) and -d eps_v / d eps_1 (against the axial strain).
@@ -22,17 +25,17 @@ import csv
 import json
 import os
 import subprocess
-import sys
 import tomllib
 
 import numpy as np
 
-ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-sys.path.insert(0, os.path.join(ROOT, "apps", "analysis"))
-from sandcell_analysis.analyze import spearman  # noqa: E402
-from sandcell_analysis.calibrate import run_point  # noqa: E402
-from sandcell_analysis.dilatancy import slope_max_dilation  # noqa: E402
-from sandcell_analysis.results import read_columns  # noqa: E402
+from sandcell_analysis.analyze import spearman
+from sandcell_analysis.calibrate import run_point
+from sandcell_analysis.dilatancy import slope_max_dilation
+from sandcell_analysis.results import read_columns
+
+HERE = os.path.dirname(os.path.abspath(__file__))  # the experiment's folder: the tables and figures
+ROOT = os.path.dirname(os.path.dirname(HERE))  # the repository
 
 
 def largest_rates(path):
@@ -69,7 +72,7 @@ def campaign_trends(folders, docs):
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--out", default="results/dilation-vs-b")
-    ap.add_argument("--docs", default=os.path.join(ROOT, "docs", "calibration", "dilation-vs-b"))
+    ap.add_argument("--docs", default=os.path.join(HERE, "dilation-vs-b"))
     ap.add_argument("--mu-r", default="0.05,0.1,0.2,0.4")
     ap.add_argument("--rolling", default="epsd2,epsd,cdt")
     ap.add_argument("--threads", type=int, default=2)
