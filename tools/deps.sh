@@ -3,7 +3,7 @@
 # everything is already there (idempotent). Uses sudo when not run as root.
 set -euo pipefail
 packages=(build-essential cmake ninja-build libeigen3-dev libtbb-dev libhdf5-dev doctest-dev
-          libtomlplusplus-dev libcli11-dev libfmt-dev
+          libtomlplusplus-dev libcli11-dev
           python3-h5py python3-matplotlib python3-numpy python3-scipy python3-pytest flake8
           pybind11-dev python3-dev
           slurm-wlm munge)  # slurm-wlm, munge: the cluster test starts a real single-node Slurm

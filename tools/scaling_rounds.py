@@ -21,10 +21,11 @@ throughput and of the per-round ratios.
 
     tools/scaling_rounds.py [--rounds 30] [--threads 2 | --threads 2,4,8,16] [--steps 2000]
         [--partitions adaptive,owner,dynamic,fixed] [--liggghts] [--liggghts-one] [--minutes M]
-        [--compat] [--csv docs/bench/scaling-rounds.csv] [--bench build/release/apps/dem-bench/dem-bench]
+        [--compat] [--csv results/scaling-rounds.csv] [--bench build/release/apps/dem-bench/dem-bench]
 
-With one T the CSV columns are one, owner, dynamic, fixed, liggghts (as in the committed
-docs/bench/scaling-rounds-*.csv); with several, each T-thread column is suffixed _T (owner_8,
+With one T the CSV columns are one, owner, dynamic, fixed, liggghts (as in the published
+experiments/2026-11-25-threading-windows/scaling-rounds-*.csv);
+with several, each T-thread column is suffixed _T (owner_8,
 liggghts_8). --liggghts-one adds LIGGGHTS on 1 rank (liggghts_1), for LIGGGHTS's own scaling.
 The probe runs with the largest T.
 
@@ -87,7 +88,7 @@ def main():
     ap.add_argument("--liggghts-one", action="store_true", help="with --liggghts: LIGGGHTS on 1 rank too")
     ap.add_argument("--minutes", type=float, default=0.0, help="start no round after this many minutes (0: no limit)")
     ap.add_argument("--compat", action="store_true", help="dem-bench --compat (implied by --liggghts)")
-    ap.add_argument("--csv", default=os.path.join(ROOT, "docs", "bench", "scaling-rounds.csv"))
+    ap.add_argument("--csv", default=os.path.join(ROOT, "results", "scaling-rounds.csv"))
     ap.add_argument("--bench", default=os.path.join(ROOT, "build", "release", "apps", "dem-bench", "dem-bench"))
     args = ap.parse_args()
     try:
@@ -185,7 +186,7 @@ def main():
         if args.liggghts and args.liggghts_one:
             a = q(col(name("liggghts", T)) / col("liggghts_1"))
             print(f"  {name('liggghts', T)}/liggghts_1 per round {a[0]:.2f} {a[1]:.2f} {a[2]:.2f}")
-    # The host's two placements of the vCPUs (docs/performance.md): near (a shared L3, ping-pong
+    # The host's two placements of the vCPUs (experiments/2026-11-25-threading-windows): near (a shared L3, ping-pong
     # ~40 ns) and far (~190 ns); the probe runs at the start of its round.
     far = col("pingpong_ns") > 120
     keys = ["one"] + [name(k, T) for T in threads for k in partitions + (["liggghts"] if args.liggghts else [])]

@@ -35,6 +35,8 @@
 
 #include "probe.hpp"
 
+#include <CLI/CLI.hpp>
+
 #include <sys/resource.h>
 
 #include <algorithm>
@@ -63,14 +65,6 @@ namespace {
   std::exit(2);
 }
 
-double parse_number(const char* key, const char* text, double lo, double hi) {
-  char* end = nullptr;
-  const double v = std::strtod(text, &end);
-  if (end == text || *end != '\0' || !(v >= lo && v <= hi))
-    usage_error(std::string(key) + " = '" + text + "': must be a number in [" + std::to_string(lo) + ", " +
-                std::to_string(hi) + "]");
-  return v;
-}
 // FNV-1a (engine/fnv1a.hpp) over the raw bytes of the state arrays in array order.
 std::uint64_t state_digest(const State& s) {
   Fnv1a f;
@@ -312,98 +306,131 @@ int run_costs(const Model& base, const Packing& packing, long steps, int threads
   return 0;
 }
 
+// The command line (CLI11, as the triaxial app): every option checked as it is parsed; bad input is
+// one line naming the option and the value, exit 2. Numbers are read as strtod reads them, and the
+// counts (steps, threads, rounds, sort) are truncated to integers, as before CLI11.
+struct Options {
+  std::string scene = std::string(SANDCELL_BENCH_SCENE_DIR) + "/dense-20k.txt";
+  double steps = 2000, threads = 0, rounds = 3, sort_interval = 1000;  // threads 0: all hardware threads
+  double deform = 0.0, vchar = 0.0;
+  bool json = false, serial = false, costs = false, scaling = false, probe = false, compat = false;
+  std::string partition = "adaptive", rolling = "epsd2", tangential = "history", normal;
+};
+
+// A number in [lo, hi].
+CLI::Validator number_in(double lo, double hi) {
+  char text[64];
+  std::snprintf(text, sizeof text, "[%g, %g]", lo, hi);
+  const std::string range = text;
+  return CLI::Validator(
+      [lo, hi, range](std::string& value) -> std::string {
+        char* end = nullptr;
+        const double v = std::strtod(value.c_str(), &end);
+        if (end == value.c_str() || *end != '\0' || !(v >= lo && v <= hi))
+          return "'" + value + "': must be a number in " + range;
+        return {};
+      },
+      "in " + range);
+}
+
+// Returns the exit code when the process ends here (--help: 0; bad input: 2), else nothing.
+std::optional<int> parse_command_line(int argc, char** argv, Options& o, Model& model) {
+  CLI::App app{
+      "dem-bench: throughput and physics check of sandcell on the benchmark scenes (scene A: fixed "
+      "box; scene B: --deform 0.9391)"};
+  app.option_defaults()->multi_option_policy(CLI::MultiOptionPolicy::TakeLast);  // a repeated option: the last
+  app.footer(
+      "usage: dem-bench [--scene FILE] [--steps N] [--threads T] [--deform RATE] [--rolling none|epsd2|epsd|cdt]\n"
+      "                 [--tangential history|incremental] [--normal hertz|hooke [--vchar V]] [--compat]\n"
+      "                 [--sort STEPS] [--serial] [--partition adaptive|owner|dynamic|fixed] [--json]\n"
+      "       dem-bench --costs [--scene FILE] [--steps N] [--threads T] [--rounds R]\n"
+      "       dem-bench --probe [--threads T]   (the machine alone: register-only scaling, ping-pong, memory)\n"
+      "       dem-bench --scaling [--scene FILE] [--steps N] [--threads T] [--rounds R] [--deform RATE]\n"
+      "                 [--partition P] [--probe] [--json]");
+  app.add_option("--scene", o.scene, "packing file (default: scenes/dense-20k.txt)")->type_name("FILE");
+  app.add_option("--steps", o.steps, "steps of the run (of each block with --scaling, --costs)")
+      ->type_name("N")
+      ->check(number_in(0, 1e9));
+  app.add_option("--threads", o.threads, "threads (default: all hardware threads)")
+      ->type_name("T")
+      ->check(number_in(1, 1024));
+  app.add_option("--deform", o.deform, "scene B: z shortened at this engineering strain rate, 1/s")
+      ->type_name("RATE")
+      ->check(number_in(0, 1e6));
+  app.add_flag("--compat", o.compat, "leave the affine term out of the contact velocities, as LIGGGHTS does");
+  app.add_option("--sort", o.sort_interval, "spatial sort interval in steps (default 1000; 0: never)")
+      ->type_name("STEPS")
+      ->check(number_in(0, 1e9));
+  app.add_flag("--serial", o.serial, "serial executor instead of TBB");
+  app.add_flag("--json", o.json, "machine-readable output");
+  app.add_flag("--costs", o.costs, "the cost of each optional system, variants interleaved");
+  app.add_flag("--scaling", o.scaling, "a 1-thread and a T-thread world alternating: the thread scaling");
+  app.add_flag("--probe", o.probe, "the machine alone (with --scaling: in every round)");
+  app.add_option("--partition", o.partition, "how the threads share each pass (default adaptive)")
+      ->type_name("P")
+      ->check(CLI::IsMember(std::vector<std::string>{"adaptive", "dynamic", "fixed", "owner"}));
+  app.add_option("--rounds", o.rounds, "rounds of --scaling and --costs (default 3)")
+      ->type_name("R")
+      ->check(number_in(1, 1000));
+  app.add_option("--rolling", o.rolling, "rolling resistance (default epsd2)")
+      ->type_name("MODEL")
+      ->check(CLI::IsMember(std::vector<std::string>{"none", "epsd2", "epsd", "cdt"}));
+  app.add_option("--tangential", o.tangential, "tangential history (default history)")
+      ->type_name("MODEL")
+      ->check(CLI::IsMember(std::vector<std::string>{"history", "incremental"}));
+  // The normal law by its registered name (hertz, hooke); hooke takes --vchar. The engine checks
+  // both when the world is built and refuses an unknown name, listing the registered ones.
+  app.add_option("--normal", o.normal, "normal contact law by its registered name (default hertz)")->type_name("LAW");
+  app.add_option("--vchar", o.vchar, "hooke's characteristic velocity, m/s")
+      ->type_name("V")
+      ->check(number_in(1e-9, 1e6));
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::CallForHelp&) {
+    std::printf("%s", app.help().c_str());
+    return 0;
+  } catch (const CLI::ParseError& e) {
+    std::fprintf(stderr, "dem-bench: %s (see --help)\n", e.what());
+    return 2;
+  }
+  // What is not given keeps the Model's default.
+  if (o.compat) model.contact.liggghts_compat = true;
+  if (app.count("--rolling") > 0) {
+    if (o.rolling == "none")
+      model.contact.rolling = RollingModel::none;
+    else if (o.rolling == "epsd2")
+      model.contact.rolling = RollingModel::epsd2;
+    else if (o.rolling == "epsd")
+      model.contact.rolling = RollingModel::epsd;
+    else
+      model.contact.rolling = RollingModel::cdt;
+  }
+  if (app.count("--tangential") > 0)
+    model.contact.tangential = o.tangential == "incremental" ? TangentialModel::incremental : TangentialModel::history;
+  if (app.count("--normal") > 0) model.contact.normal = o.normal;
+  if (app.count("--vchar") > 0) model.contact.parameters["characteristic_velocity"] = o.vchar;
+  return std::nullopt;
+}
+
 }  // namespace
 
 static int bench_main(int argc, char** argv) {
-  std::string scene = std::string(SANDCELL_BENCH_SCENE_DIR) + "/dense-20k.txt";
-  long steps = 2000;
-  int threads = 0;
-  double deform = 0.0;
-  bool json = false, serial = false, costs = false, scaling = false, probe = false;
-  Partition partition = Partition::adaptive;
-  int rounds = 3;
-  long sort_interval = -1;
+  Options o;
   Model model;
-  for (int a = 1; a < argc; ++a) {
-    const std::string_view arg = argv[a];
-    auto value = [&]() -> const char* {
-      if (a + 1 >= argc) usage_error(std::string(arg) + " needs a value");
-      return argv[++a];
-    };
-    if (arg == "--scene")
-      scene = value();
-    else if (arg == "--steps")
-      steps = static_cast<long>(parse_number("--steps", value(), 0, 1e9));
-    else if (arg == "--threads")
-      threads = static_cast<int>(parse_number("--threads", value(), 1, 1024));
-    else if (arg == "--deform")
-      deform = parse_number("--deform", value(), 0, 1e6);
-    else if (arg == "--compat")
-      model.contact.liggghts_compat = true;
-    else if (arg == "--sort")
-      sort_interval = static_cast<long>(parse_number("--sort", value(), 0, 1e9));
-    else if (arg == "--serial")
-      serial = true;
-    else if (arg == "--json")
-      json = true;
-    else if (arg == "--costs")
-      costs = true;
-    else if (arg == "--scaling")
-      scaling = true;
-    else if (arg == "--probe")
-      probe = true;
-    else if (arg == "--partition") {
-      const std::string_view v = value();
-      const std::optional<Partition> named = partition_from_name(v);
-      if (!named) usage_error("--partition = '" + std::string(v) + "': allowed adaptive, dynamic, fixed, owner");
-      partition = *named;
-    } else if (arg == "--rounds")
-      rounds = static_cast<int>(parse_number("--rounds", value(), 1, 1000));
-    else if (arg == "--rolling") {
-      const std::string_view v = value();
-      if (v == "none")
-        model.contact.rolling = RollingModel::none;
-      else if (v == "epsd2")
-        model.contact.rolling = RollingModel::epsd2;
-      else if (v == "epsd")
-        model.contact.rolling = RollingModel::epsd;
-      else if (v == "cdt")
-        model.contact.rolling = RollingModel::cdt;
-      else
-        usage_error("--rolling = '" + std::string(v) + "': allowed none, epsd2, epsd, cdt");
-    } else if (arg == "--tangential") {
-      const std::string_view v = value();
-      if (v == "history")
-        model.contact.tangential = TangentialModel::history;
-      else if (v == "incremental")
-        model.contact.tangential = TangentialModel::incremental;
-      else
-        usage_error("--tangential = '" + std::string(v) + "': allowed history, incremental");
-    } else if (arg == "--normal") {
-      // The normal law by its registered name (hertz, hooke); hooke takes --vchar. The engine checks
-      // both when the world is built and refuses an unknown name, listing the registered ones.
-      model.contact.normal = std::string(value());
-    } else if (arg == "--vchar") {
-      model.contact.parameters["characteristic_velocity"] = parse_number("--vchar", value(), 1e-9, 1e6);
-    } else if (arg == "--help" || arg == "-h") {
-      std::printf(
-          "usage: dem-bench [--scene FILE] [--steps N] [--threads T] [--deform RATE] [--rolling none|epsd2|epsd|cdt]\n"
-          "                 [--tangential history|incremental] [--normal hertz|hooke [--vchar V]] [--compat] [--sort STEPS] [--serial] [--partition adaptive|owner|dynamic|fixed] [--json]\n"
-          "       dem-bench --costs [--scene FILE] [--steps N] [--threads T] [--rounds R]\n"
-          "       dem-bench --probe [--threads T]   (the machine alone: register-only scaling, ping-pong, memory)\n"
-          "       dem-bench --scaling [--scene FILE] [--steps N] [--threads T] [--rounds R] [--deform RATE] [--partition P] [--probe] [--json]\n");
-      return 0;
-    } else {
-      usage_error("unknown argument '" + std::string(arg) + "' (see --help)");
-    }
-  }
+  if (const std::optional<int> code = parse_command_line(argc, argv, o, model)) return *code;
+  const std::string& scene = o.scene;
+  const long steps = static_cast<long>(o.steps);
+  const int threads = static_cast<int>(o.threads);
+  const double deform = o.deform;
+  const bool json = o.json, serial = o.serial, costs = o.costs, scaling = o.scaling, probe = o.probe;
+  const Partition partition = *partition_from_name(o.partition);
+  const int rounds = static_cast<int>(o.rounds);
 
   // The benchmark material and settings (identical in every code).
   model.dt = 5.324636531947874e-07;  // s, 0.2 x Rayleigh time of the smallest (d = 5 mm) sphere
   model.materials.push_back(Material{2650.0, 70e9, 0.3, 0.5, 0.5, 0.1});
   model.contact.skin = 0.3e-3;  // m
-  if (sort_interval < 0) sort_interval = 1000;
-  model.contact.sort_interval = sort_interval;
+  model.contact.sort_interval = static_cast<int>(o.sort_interval);
 
   Packing packing;
   try {

@@ -367,7 +367,7 @@ void log_campaign_start(Log& log, const Plan& plan, const Options& options) {
   if (options.threads > available_cpus())
     log.line("warning: --threads " + std::to_string(options.threads) + " > the " + std::to_string(available_cpus()) +
              " CPUs this process may use (SLURM_CPUS_PER_TASK, else its affinity mask): threads will share cores");
-  // Once per run: it concerns every stage. The speed/accuracy study (docs/study) moved the peak
+  // Once per run: it concerns every stage. The speed/accuracy study (experiments/2026-11-21-study-quick) moved the peak
   // q/p by 1e-4 from dt = 0.05 to 0.5 t_R; beyond that nothing is measured.
   if (plan.config.dt_fraction > 0.5)
     log.line(

@@ -17,7 +17,7 @@ for _where in (HERE, os.path.join(HERE, "..", "analysis")):
         break
 
 try:
-    # BAND_CONTRAST: tools/campaign_table.py imports it from here.
+    # BAND_CONTRAST re-exported for scripts that import it from this entry point.
     from sandcell_analysis.localization import BAND_CONTRAST, main  # noqa: F401
 except ImportError as _exc:  # an interpreter without numpy, or no package
     print(f"localization.py: error: {_exc} (needs numpy, matplotlib and h5py)", file=sys.stderr)

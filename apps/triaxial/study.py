@@ -16,7 +16,7 @@ for _where in (HERE, os.path.join(HERE, "..", "analysis")):
         sys.path.insert(0, os.path.abspath(_where))
         break
 
-from sandcell_analysis.study import main, slope_max_dilation  # noqa: E402,F401 (tools/validate_fast.py imports it)
+from sandcell_analysis.study import main, slope_max_dilation  # noqa: E402,F401 (re-exported)
 
 if __name__ == "__main__":
     sys.exit(main())

@@ -83,3 +83,46 @@ def test_cmake_install_then_triaxial_analyze(tmp_path):
     r = subprocess.run([str(prefix / "bin" / "triaxial"), "analyze", str(tmp_path / "out" / "report.md")],
                        capture_output=True, text=True, timeout=60, env=ENV)
     assert r.returncode == 2 and r.stderr.count("\n") == 1 and "cannot read" in r.stderr, r.stderr
+
+
+# python -m sandcell_analysis: every command of the package, with PYTHONPATH=apps/analysis (or installed).
+MODULE_ENV = dict(ENV, PYTHONPATH=os.path.abspath(os.path.join(PACKAGE, "..")))
+COMMANDS = ("analyze", "study", "calibrate", "localization", "plot", "replay-critical", "campaign-table")
+
+
+def run_module(*args, cwd):
+    return subprocess.run([sys.executable, "-m", "sandcell_analysis", *args], capture_output=True, text=True,
+                          timeout=300, env=MODULE_ENV, cwd=cwd)
+
+
+def test_module_help_lists_every_command(tmp_path):
+    r = run_module("--help", cwd=str(tmp_path))
+    assert r.returncode == 0 and r.stdout.startswith("usage: python -m sandcell_analysis COMMAND"), r.stderr
+    for command in COMMANDS:
+        assert f"\n  {command} " in r.stdout, command
+        h = run_module(command, "--help", cwd=str(tmp_path))
+        assert h.returncode == 0 and f"sandcell_analysis {command}" in h.stdout, (command, h.stderr)
+    r = run_module(cwd=str(tmp_path))  # no command: the usage on stderr, exit 2
+    assert r.returncode == 2 and "COMMAND" in r.stderr
+    r = run_module("nope", cwd=str(tmp_path))
+    assert r.returncode == 2 and "unknown command 'nope'" in r.stderr
+
+
+def test_module_dispatch_replay_critical_and_analyze(tmp_path):
+    from sandcell_analysis import critical, results
+    h5 = shear_file(str(tmp_path))
+    r = run_module("replay-critical", h5, cwd=str(tmp_path))
+    assert r.returncode == 0, r.stderr
+    # the command's first critical row is critical.first_critical_row's, on results.read_columns' series
+    s = results.read_columns(h5, ("strain", "p", "q", "e"))
+    n = critical.first_critical_row(s["strain"][:, 0], {"p": s["p"], "q": s["q"], "eta": s["q"] / s["p"], "e": s["e"]})
+    assert n is not None and f"critical at row {n}: " in r.stdout, r.stdout
+    r = run_module("replay-critical", str(tmp_path / "missing.h5"), cwd=str(tmp_path))
+    assert r.returncode == 2 and r.stderr.count("\n") == 1 and "cannot read" in r.stderr, r.stderr
+    run_dir = tmp_path / "run"
+    run_dir.mkdir()
+    for b in (0.0, 0.5, 1.0):
+        shear_file(str(run_dir), f"p-b{b:.2f}-p0_500kPa", b)
+    r = run_module("analyze", str(run_dir), "--out", str(tmp_path / "out"), cwd=str(tmp_path))
+    assert r.returncode == 0, r.stderr
+    assert os.path.getsize(tmp_path / "out" / "report.md") > 1000

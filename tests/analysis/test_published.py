@@ -1,4 +1,5 @@
-"""The published campaigns (every docs/**/index.csv) hold no test reported `done` off its stress path.
+"""The published campaigns (every experiments/**/index.csv and docs/**/index.csv) hold no test reported
+`done` off its stress path.
 
 A campaign run with the stress-path watchdog has its verdict in index.csv (path_error, b_error,
 rotation_deg, reason): every `done` test must be within the watchdog's default tolerances, every
@@ -18,8 +19,9 @@ import pytest
 
 from sandcell_analysis.path_check import DEFAULTS
 
-DOCS = os.path.abspath(os.path.join(os.path.dirname(__file__), "..", "..", "docs"))
-INDEXES = sorted(glob.glob(os.path.join(DOCS, "**", "index.csv"), recursive=True))
+ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), "..", ".."))
+PUBLISHED = [os.path.join(ROOT, "experiments"), os.path.join(ROOT, "docs")]  # where results are published
+INDEXES = sorted(p for top in PUBLISHED for p in glob.glob(os.path.join(top, "**", "index.csv"), recursive=True))
 BANNER = "published before the stress-path watchdog"
 
 
@@ -36,7 +38,9 @@ def number(v):
 
 
 def nearest_readme(folder):
-    while folder.startswith(DOCS):
+    """The README.md in folder or the nearest one above it, within the published tree it is in."""
+    top = next(t for t in PUBLISHED if folder.startswith(t + os.sep))
+    while folder.startswith(top):
         readme = os.path.join(folder, "README.md")
         if os.path.exists(readme):
             return readme
@@ -45,10 +49,12 @@ def nearest_readme(folder):
 
 
 def test_there_are_published_campaigns():
-    assert len(INDEXES) >= 6  # docs/campaign, campaign-full, the calibrated ones, prep-friction
+    # the four 2026-11-28 campaigns (the full-scale calibrated one in two parts) and the calibration's
+    # full-scale test (experiments/2026-11-25-calibration/prep-friction/full-scale)
+    assert len(INDEXES) >= 6
 
 
-@pytest.mark.parametrize("index", INDEXES, ids=lambda p: os.path.relpath(p, DOCS))
+@pytest.mark.parametrize("index", INDEXES, ids=lambda p: os.path.relpath(p, ROOT))
 def test_no_done_test_off_its_path(index):
     table = rows(index)
     assert table, index

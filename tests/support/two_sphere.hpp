@@ -1,7 +1,7 @@
 #pragma once
 // Two equal spheres colliding in the middle of a large periodic cell, no gravity, no rotation at
 // start: sphere 0 at c - (R + gap/2) e_x moving at (+v_n/2, 0, +v_t/2), sphere 1 mirrored. The
-// scene of the contact-law tests and of tools/hooke-vs-liggghts.sh (tests/tools/two_sphere.cpp).
+// scene of the contact-law tests and of experiments/2026-11-25-hooke-vs-liggghts (tests/tools/two_sphere.cpp).
 #include "engine/model.hpp"
 #include "engine/state.hpp"
 

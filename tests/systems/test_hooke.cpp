@@ -105,7 +105,7 @@ TEST_CASE("hooke: a head-on collision converges at first order to restitution e 
 }
 
 TEST_CASE("hooke: the collision reproduces LIGGGHTS 3.8.0 model hooke at the same time step") {
-  // docs/hooke-vs-liggghts.csv (tools/hooke-vs-liggghts.sh), scene normal-e0.5-v0.1 at
+  // experiments/2026-11-25-hooke-vs-liggghts/hooke-vs-liggghts.csv, scene normal-e0.5-v0.1 at
   // dt = t_c/50: LIGGGHTS printed e = 0.492634787540428 and a largest step-end overlap of
   // 2.3942997974188418e-07 m (the analytic values are 0.5 and 2.4155e-7: the step is coarse, so
   // agreeing to 1e-9 means the same algorithm, not just the same physics). A Python replica of

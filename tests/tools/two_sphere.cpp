@@ -1,5 +1,5 @@
 // two-sphere: a two-sphere collision (tests/support/two_sphere.hpp), one CSV row per step, for the
-// side-by-side comparison with LIGGGHTS (tools/hooke-vs-liggghts.sh, whose script's docstring is
+// side-by-side comparison with LIGGGHTS (experiments/2026-11-25-hooke-vs-liggghts: its script's docstring is
 // the contract):
 //   two-sphere --radius R --density RHO --young E --poisson NU --restitution E --friction MU
 //              --vn VN --vt VT --vchar VC --dt DT --steps N --gap GAP [--normal hertz|hooke]

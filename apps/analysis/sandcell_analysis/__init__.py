@@ -12,9 +12,17 @@ Modules
   analyze       `triaxial analyze`: the pipeline, report.md and summary.json
   study         `triaxial study`: the speed-accuracy and sample-size studies
   localization  `triaxial localization`: local strain fields and the band profile
+  path_check    the stress-path watchdog's rules, re-applied to a results file's series
+  calibrate     `triaxial calibrate`: micro-parameters fitted to macroscopic targets
+  replay        `replay-critical`: the app's critical-state stop replayed on a test's series
+  campaign_table `campaign-table`: one row per test of a campaign (end, critical point, band)
   plots         the figures (matplotlib, imported when drawing)
 
-From Python, with apps/analysis (source tree) or <prefix>/share/sandcell (installed) on sys.path:
+Every command: `python3 -m sandcell_analysis COMMAND ...` (__main__.py), with the package installed
+(`pip install --no-build-isolation --no-deps apps/analysis`) or PYTHONPATH=apps/analysis.
+
+From Python, with the package installed, or apps/analysis (source tree) or <prefix>/share/sandcell
+(installed by cmake) on sys.path:
 
     from sandcell_analysis import results, critical
     test, why = results.read_test("run/p-b0.00-p0_500kPa.h5")

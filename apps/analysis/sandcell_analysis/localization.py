@@ -483,7 +483,7 @@ grid_arg = int_at_least(3, "bins along each cell edge")
 slabs_arg = int_at_least(4, "slabs across the band's period")
 
 
-def main():
+def main(argv=None):
     ap = argparse.ArgumentParser(prog=PROG, description=__doc__.split("\n\n")[0],
                                  formatter_class=argparse.RawDescriptionHelpFormatter,
                                  epilog="\n\n".join(__doc__.split("\n\n")[2:]))
@@ -495,7 +495,7 @@ def main():
                     help="one increment, from the first snapshot to the last (the whole test)")
     ap.add_argument("--slabs", type=slabs_arg, default=SLABS,
                     help=f"slabs across the band's period for its profile, >= 4 (default {SLABS})")
-    args = ap.parse_args()
+    args = ap.parse_args(argv)
     try:
         return run(args)
     except InputError as e:  # the reader's one-line error (results.py): exit 2

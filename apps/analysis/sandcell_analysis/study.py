@@ -53,7 +53,7 @@ import subprocess
 import sys
 import tomllib
 
-from .dilatancy import slope_max_dilation  # noqa: F401 (tools/validate_fast.py imports it from study)
+from .dilatancy import slope_max_dilation  # noqa: F401 (apps/triaxial/study.py re-exports it)
 from .results import read_columns, read_index, read_samples
 
 
@@ -404,7 +404,7 @@ def size_study(args, preset, base):
     return save_figure(fig, f"sandcell sample size ({cmd})", args.out)
 
 
-def main():
+def main(argv=None):
     ap = argparse.ArgumentParser(prog=PROG, description=__doc__.split("\n\n")[0],
                                  formatter_class=argparse.RawDescriptionHelpFormatter,
                                  epilog="\n\n".join(__doc__.split("\n\n")[2:]))
@@ -419,7 +419,7 @@ def main():
                          "(default: the noise floor of the seeds)")
     ap.add_argument("--triaxial", default=os.environ.get("SANDCELL_TRIAXIAL", "triaxial"),
                     help="the triaxial binary (default: the one that started the study)")
-    args = ap.parse_args()
+    args = ap.parse_args(argv)
     # Every option is checked before anything runs (a bad --window used to fail after the runs).
     if not 1 <= args.threads <= 1024:
         fail(f"--threads = {args.threads}: must be in [1, 1024] (the range of triaxial --threads)")

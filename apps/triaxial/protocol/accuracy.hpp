@@ -55,7 +55,7 @@ class AccuracyWatch {
   };
   static constexpr int k_count = 4;
   // Safe ranges. The inertial number in the form shear.inertial_number sets (eps_dot_1 d50
-  // sqrt(rho/p)): the inertia study (docs/study-inertia) found every measure within one test's
+  // sqrt(rho/p)): the inertia study (experiments/2026-11-22-study-inertia) found every measure within one test's
   // scatter from I = 1e-5 up to 3e-3 and the peak q/p 0.05-0.5 too high at 1e-2; the limit is 3e-3
   // plus 5 % for the fluctuation of the measured p between servo updates. An unbalanced force
   // ratio above 0.1 means forces far from balance; the kinetic energy reached 4 % of the stored
@@ -64,7 +64,7 @@ class AccuracyWatch {
   // 5 % is the limit; Hertz theory assumes overlaps small beside the radius.
   static constexpr Limit k_limits[k_count] = {
       {"inertial number eps_dot_1 d50 sqrt(rho/p)", 3.15e-3,
-       "validated up to 3e-3 (docs/study-inertia): lower shear.strain_rate or shear.inertial_number"},
+       "validated up to 3e-3 (experiments/2026-11-22-study-inertia): lower shear.strain_rate or shear.inertial_number"},
       {"unbalanced force ratio", 0.1,
        "forces far from balance: lower shear.strain_rate or shear.inertial_number; from the first rows on, "
        "lower time.dt_fraction (stiff contacts at high p: 0.35 t_R was unstable at 16 MPa)"},

@@ -1,0 +1,38 @@
+# apps.bench_cli: dem-bench's command line (CLI11). --help exits 0 and lists every option; bad input
+# exits 2 with one line on stderr naming the option and the value, before any work.
+execute_process(COMMAND "${BENCH}" --help RESULT_VARIABLE code OUTPUT_VARIABLE out ERROR_VARIABLE err)
+if(NOT code EQUAL 0)
+  message(FATAL_ERROR "dem-bench --help exited ${code}: ${err}")
+endif()
+foreach(option --scene --steps --threads --deform --compat --sort --serial --json --costs --scaling --probe --partition
+               --rounds --rolling --tangential --normal --vchar)
+  string(FIND "${out}" "${option}" at)
+  if(at EQUAL -1)
+    message(FATAL_ERROR "dem-bench --help does not list ${option}: ${out}")
+  endif()
+endforeach()
+# bad(OPTION VALUE [ARGS...]): exit 2, one line naming OPTION and VALUE.
+function(bad option value)
+  execute_process(COMMAND "${BENCH}" ${option} ${value} ${ARGN} RESULT_VARIABLE code OUTPUT_VARIABLE out
+                  ERROR_VARIABLE err)
+  string(REGEX MATCHALL "\n" lines "${err}")
+  list(LENGTH lines n)
+  string(FIND "${err}" "${option}" at_option)
+  string(FIND "${err}" "${value}" at_value)
+  if(NOT code EQUAL 2 OR NOT n EQUAL 1 OR at_option EQUAL -1 OR at_value EQUAL -1)
+    message(FATAL_ERROR "dem-bench ${option} ${value} ${ARGN}: exit ${code} (expected 2), stderr '${err}' (one line "
+                        "naming ${option} and ${value}), stdout '${out}'")
+  endif()
+endfunction()
+bad(--steps abc)
+bad(--steps -5)
+bad(--threads 0)
+bad(--threads 5000)
+bad(--deform -1)
+bad(--sort 2e9)
+bad(--rounds 0 --costs)
+bad(--rolling sticky)
+bad(--tangential spring)
+bad(--partition greedy)
+bad(--vchar 0 --normal hooke)
+bad(--bogus "")
