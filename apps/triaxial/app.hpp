@@ -39,9 +39,11 @@ namespace sandcell::triaxial {
 namespace fs = std::filesystem;
 using Clock = std::chrono::steady_clock;
 
-/// The Python helpers (plot, analysis): next to an installed binary (<prefix>/share/sandcell), else
-/// in the source tree the binary was built from. Empty when neither exists.
-fs::path script_path(const std::string& name);
+/// Where the analysis package (sandcell_analysis) is: beside an installed binary (<prefix>/share/sandcell),
+/// else in the source tree the binary was built from (apps/analysis); empty: wherever Python finds it.
+fs::path analysis_root();
+/// PYTHONPATH for `python3 -m sandcell_analysis`: analysis_root() before the caller's PYTHONPATH.
+std::string analysis_pythonpath();
 /// The interpreter: $SANDCELL_PYTHON, else Debian's python3 (it has h5py, numpy, scipy, matplotlib).
 std::string python();
 /// The names of the thread partitions (--thread-partition).

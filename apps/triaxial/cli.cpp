@@ -17,22 +17,30 @@
 #include <optional>
 #include <sstream>
 
-#ifndef SANDCELL_SCRIPT_DIR
-#define SANDCELL_SCRIPT_DIR ""
+#ifndef SANDCELL_ANALYSIS_DIR
+#define SANDCELL_ANALYSIS_DIR ""
 #endif
 
 namespace sandcell::triaxial {
 
-fs::path script_path(const std::string& name) {
+fs::path analysis_root() {
   std::error_code ec;
   const fs::path exe = fs::read_symlink("/proc/self/exe", ec);
   if (!ec) {
-    const fs::path installed = exe.parent_path().parent_path() / "share" / "sandcell" / name;
-    if (fs::exists(installed)) return installed;
+    const fs::path installed = exe.parent_path().parent_path() / "share" / "sandcell";
+    if (fs::exists(installed / "sandcell_analysis" / "__main__.py")) return installed;
   }
-  const fs::path source = fs::path(SANDCELL_SCRIPT_DIR) / name;
-  if (!std::string(SANDCELL_SCRIPT_DIR).empty() && fs::exists(source)) return source;
+  const fs::path source = fs::path(SANDCELL_ANALYSIS_DIR);
+  if (!source.empty() && fs::exists(source / "sandcell_analysis" / "__main__.py")) return source;
   return {};
+}
+
+std::string analysis_pythonpath() {
+  const fs::path root = analysis_root();
+  const char* env = std::getenv("PYTHONPATH");
+  const std::string rest = env && *env ? env : "";
+  if (root.empty()) return rest;
+  return rest.empty() ? root.string() : root.string() + ":" + rest;
 }
 
 std::string python() {
@@ -47,19 +55,15 @@ std::vector<std::string> partition_name_list() {
 
 namespace {
 
-// `triaxial analyze|study|localization|calibrate ...`: runs the Python script <command>.py with the remaining arguments;
-// the script's usage lines name "triaxial <command>", and the study finds this binary through
-// SANDCELL_TRIAXIAL.
+// `triaxial analyze|study|localization|calibrate ...`: runs `python3 -m sandcell_analysis <command>` with the
+// remaining arguments, the package found beside an installed binary or in the source tree (PYTHONPATH, else
+// wherever Python finds it); the usage lines name "triaxial <command>", and the study finds this binary
+// through SANDCELL_TRIAXIAL.
 int script_main(const std::string& command, int argc, const char* const* argv, std::ostream& err) {
   const std::string prog = "triaxial " + command;
-  const fs::path script = script_path(command + ".py");
-  if (script.empty()) {
-    err << prog << ": " << command << ".py not found (looked in <prefix>/share/sandcell and " << SANDCELL_SCRIPT_DIR
-        << ")\n";
-    return 2;
-  }
   const std::string py = python();
-  std::vector<std::string> args{py, script.string()};
+  const std::string pythonpath = analysis_pythonpath();
+  std::vector<std::string> args{py, "-m", "sandcell_analysis", command};
   for (int k = 1; k < argc; ++k) args.emplace_back(argv[k]);
   std::vector<char*> cargs;
   for (std::string& a : args) cargs.push_back(a.data());
@@ -74,9 +78,12 @@ int script_main(const std::string& command, int argc, const char* const* argv, s
   }
   if (pid == 0) {
     ::setenv("SANDCELL_ANALYZE_PROG", prog.c_str(), 1);  // its usage lines name this command
+    if (!pythonpath.empty()) ::setenv("PYTHONPATH", pythonpath.c_str(), 1);
     if (!ec) ::setenv("SANDCELL_TRIAXIAL", self.c_str(), 1);
     ::execvp(cargs[0], cargs.data());
-    std::fprintf(stderr, "%s: cannot run %s (needs python3 with numpy, scipy, matplotlib, h5py; set SANDCELL_PYTHON)\n",
+    std::fprintf(stderr,
+                 "%s: cannot run %s (needs python3 with numpy, scipy, matplotlib, h5py and the package "
+                 "sandcell_analysis; set SANDCELL_PYTHON)\n",
                  prog.c_str(), cargs[0]);
     std::_Exit(127);
   }

@@ -106,7 +106,7 @@ class ShearRun {
   void run();
   /// The last snapshot, the checkpoint marked complete, the summary and the job's last line.
   void finish();
-  /// The PNG of q and eps_v (plot_triaxial.py); a missing python3/matplotlib is a warning.
+  /// The PNG of q and eps_v (python3 -m sandcell_analysis plot); a missing python3/matplotlib is a warning.
   void plot() const;
 
  private:
@@ -358,16 +358,14 @@ void ShearRun::finish() {
 
 void ShearRun::plot() const {
   // The plot is a convenience: a missing python3/matplotlib is a warning, not a failure.
-  const fs::path script = script_path("plot_triaxial.py");
   const fs::path png = plan_.out / (test_.name + ".png");
-  if (!script.empty()) {
-    const std::string cmd =
-        "'" + python() + "' '" + script.string() + "' '" + path_.string() + "' '" + png.string() + "' 2>&1";
-    if (std::system(cmd.c_str()) == 0)
-      log_.line(test_.name + ": plot " + png.string());
-    else
-      log_.line(test_.name + ": warning: no plot (needs python3 with h5py and matplotlib: " + cmd + ")");
-  }
+  const std::string pythonpath = analysis_pythonpath();
+  const std::string cmd = (pythonpath.empty() ? "" : "PYTHONPATH='" + pythonpath + "' ") + "'" + python() +
+                          "' -m sandcell_analysis plot '" + path_.string() + "' '" + png.string() + "' 2>&1";
+  if (std::system(cmd.c_str()) == 0)
+    log_.line(test_.name + ": plot " + png.string());
+  else
+    log_.line(test_.name + ": warning: no plot (needs python3 with h5py and matplotlib: " + cmd + ")");
 }
 
 void Runner::shear(const TestSpec& test, Summary& summary) {

@@ -1,5 +1,6 @@
 """Helpers shared by the analysis tests: bounds on fitted values, and synthetic results files."""
 import os
+import sys
 
 import h5py
 import numpy as np
@@ -8,7 +9,12 @@ from sandcell_analysis import csl, m_theta
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.abspath(os.path.join(HERE, "..", ".."))
-SCRIPTS = os.path.join(ROOT, "apps", "triaxial")  # the entry points (analyze.py, ...)
+ANALYSIS = os.path.join(ROOT, "apps", "analysis")  # the package sandcell_analysis
+
+
+def command(name):
+    """The argv of an analysis command (what `triaxial NAME` runs): python -m sandcell_analysis NAME."""
+    return [sys.executable, "-m", "sandcell_analysis", name]
 
 
 def within(tc, value, truth, se, n_se, abs_bound, what):

@@ -1,20 +1,19 @@
-"""`triaxial analyze` (sandcell_analysis.analyze through apps/triaxial/analyze.py): verdicts, and the
+"""`triaxial analyze` (python -m sandcell_analysis analyze): verdicts, and the
 whole pipeline on small synthetic results files written here with h5py, and its bad-input errors."""
 import json
 import os
 import subprocess
-import sys
 import tempfile
 import unittest
 
 import h5py
 import numpy as np
 
-from helpers import CSL_TRUE, D0_TRUE, K_TRUE, M_TRUE, MC_TRUE, SCRIPTS, caricature, write_results
+from helpers import CSL_TRUE, D0_TRUE, K_TRUE, M_TRUE, MC_TRUE, caricature, command, write_results
 from sandcell_analysis import analyze
 from sandcell_analysis import csl
 
-SCRIPT = os.path.join(SCRIPTS, "analyze.py")  # the entry point `triaxial analyze` runs
+ANALYZE = command("analyze")  # what `triaxial analyze` runs
 
 
 class Verdicts(unittest.TestCase):
@@ -58,7 +57,7 @@ class CommandLine(unittest.TestCase):
         # --smooth 0.01: the caricature hardens within ~1 % of axial strain, and a 2 % window
         # (the default, for noisy DEM data) would bias d0 up ~10 % and m down ~15 %: over this
         # narrow psi range (-0.05..0) d0 and m are strongly correlated.
-        cls.proc = subprocess.run([sys.executable, SCRIPT, cls.dir, "--out", cls.out,
+        cls.proc = subprocess.run([*ANALYZE, cls.dir, "--out", cls.out,
                                    "--smooth", "0.01"],
                                   capture_output=True, text=True, timeout=120)
         cls.summary = None
@@ -135,7 +134,7 @@ class CommandLine(unittest.TestCase):
 
 class BadInput(unittest.TestCase):
     def run_cli(self, *args):
-        return subprocess.run([sys.executable, SCRIPT, *args], capture_output=True, text=True,
+        return subprocess.run([*ANALYZE, *args], capture_output=True, text=True,
                               timeout=60)
 
     def check_error(self, proc, words):
@@ -198,7 +197,7 @@ class FailedTestsLeftOut(unittest.TestCase):
                         attrs.setdefault("status", "done")
                     write_results(os.path.join(run, name + ".h5"), series, attrs)
             out = os.path.join(tmp, "analysis")
-            proc = subprocess.run([sys.executable, SCRIPT, run, "--out", out, "--smooth", "0.01"],
+            proc = subprocess.run([*ANALYZE, run, "--out", out, "--smooth", "0.01"],
                                   capture_output=True, text=True, timeout=120)
             self.assertEqual(proc.returncode, 0, proc.stderr)
             with open(os.path.join(out, "summary.json")) as fh:

@@ -19,7 +19,7 @@ import pytest
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.dirname(os.path.dirname(HERE))
-SCRIPT = os.path.join(ROOT, "apps", "triaxial", "calibrate.py")
+CALIBRATE = [sys.executable, "-m", "sandcell_analysis", "calibrate"]  # what `triaxial calibrate` runs
 CONFIG = os.path.join(HERE, "calibrate-smoke.toml")
 TRIAXIAL = os.environ.get("SANDCELL_TRIAXIAL", "")
 TRUTH = {"material.friction": 0.5, "prepare.friction": 0.2}
@@ -30,7 +30,7 @@ needs_binary = pytest.mark.skipif(not os.access(TRIAXIAL, os.X_OK), reason="SAND
 
 def calibrate(*args, cwd=None):
     env = dict(os.environ, SANDCELL_TRIAXIAL=TRIAXIAL)
-    return subprocess.run([sys.executable, SCRIPT, *args], capture_output=True, text=True, env=env, cwd=cwd)
+    return subprocess.run([*CALIBRATE, *args], capture_output=True, text=True, env=env, cwd=cwd)
 
 
 @pytest.fixture(scope="module")

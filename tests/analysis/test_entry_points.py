@@ -1,25 +1,20 @@
-"""The four scripts (apps/triaxial/*.py) are thin entry points that find the package sandcell_analysis
-beside them (installed: <prefix>/share/sandcell) or in ../analysis (source tree), and nowhere else.
-With $SANDCELL_BUILD_DIR (set by ctest, analysis.entry_points), the real install: `cmake --install`
-into a temporary prefix, then `<prefix>/bin/triaxial analyze` on synthetic results."""
+"""The analysis commands run as `python -m sandcell_analysis COMMAND` (what `triaxial COMMAND` runs):
+no script patches sys.path; the app finds the package beside its installed binary
+(<prefix>/share/sandcell) or in its source tree (apps/analysis) and passes it in PYTHONPATH. With
+$SANDCELL_BUILD_DIR (set by ctest, analysis.entry_points), the real install: `cmake --install` into a
+temporary prefix, then `<prefix>/bin/triaxial analyze` on synthetic results."""
 import os
-import shutil
 import subprocess
 import sys
 
 import numpy as np
 import pytest
 
-from helpers import SCRIPTS, caricature, write_results
+from helpers import ANALYSIS, caricature, write_results
 
-ENTRY = ("analyze.py", "study.py", "localization.py", "plot_triaxial.py")
-PACKAGE = os.path.join(SCRIPTS, "..", "analysis", "sandcell_analysis")
-# No PYTHONPATH: a script must find the package by itself.
+PACKAGE = os.path.join(ANALYSIS, "sandcell_analysis")
+# No PYTHONPATH: the app must hand the package to Python by itself.
 ENV = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}
-
-
-def run(*args, cwd=None):
-    return subprocess.run([sys.executable, *args], capture_output=True, text=True, timeout=300, env=ENV, cwd=cwd)
 
 
 def shear_file(folder, name="p-b0.00-p0_500kPa", b=0.0):
@@ -30,35 +25,14 @@ def shear_file(folder, name="p-b0.00-p0_500kPa", b=0.0):
     return path
 
 
-def test_source_tree_scripts(tmp_path):
-    for script in ENTRY[:3]:
-        r = run(os.path.join(SCRIPTS, script), "--help", cwd=str(tmp_path))
-        assert r.returncode == 0 and "usage" in r.stdout, (script, r.stderr)
-    h5 = shear_file(str(tmp_path))
-    png = str(tmp_path / "plot.png")
-    r = run(os.path.join(SCRIPTS, "plot_triaxial.py"), h5, png, cwd=str(tmp_path))
-    assert r.returncode == 0 and os.path.getsize(png) > 1000, r.stderr
-    r = run(os.path.join(SCRIPTS, "plot_triaxial.py"), h5)  # wrong arguments: the usage, exit 2
-    assert r.returncode == 2 and "plot_triaxial.py RESULTS.h5 OUT.png" in r.stderr
-
-
-def test_installed_layout_uses_the_package_beside_the_scripts(tmp_path):
-    share = tmp_path / "share" / "sandcell"
-    share.mkdir(parents=True)
-    for script in ENTRY:
-        shutil.copy(os.path.join(SCRIPTS, script), share)
-    shutil.copytree(PACKAGE, share / "sandcell_analysis", ignore=shutil.ignore_patterns("__pycache__"))
-    run_dir = tmp_path / "run"
-    run_dir.mkdir()
-    for b in (0.0, 0.5, 1.0):
-        shear_file(str(run_dir), f"p-b{b:.2f}-p0_500kPa", b)
-    r = run(str(share / "analyze.py"), str(run_dir), "--out", str(tmp_path / "out"), cwd=str(tmp_path))
-    assert r.returncode == 0, r.stderr
-    assert os.path.getsize(tmp_path / "out" / "report.md") > 1000
-    # Without the package beside them (and no source tree above), the scripts say so in one line.
-    shutil.rmtree(share / "sandcell_analysis")
-    r = run(str(share / "analyze.py"), str(run_dir), cwd=str(tmp_path))
-    assert r.returncode == 1 and r.stderr.count("\n") == 1 and "sandcell_analysis" in r.stderr, r.stderr
+def test_no_entry_point_patches_sys_path():
+    """The package's modules and the app's directory hold no sys.path shim (the issue of the shims:
+    five copies of the same search); the tests' conftest is the one place that sets the path."""
+    apps = os.path.join(ANALYSIS, "..", "triaxial")
+    assert not [f for f in os.listdir(apps) if f.endswith(".py")]
+    for f in os.listdir(PACKAGE):
+        if f.endswith(".py"):
+            assert "sys.path.insert" not in open(os.path.join(PACKAGE, f)).read(), f
 
 
 @pytest.mark.skipif(not os.environ.get("SANDCELL_BUILD_DIR"), reason="needs $SANDCELL_BUILD_DIR (ctest)")
@@ -68,10 +42,10 @@ def test_cmake_install_then_triaxial_analyze(tmp_path):
                        capture_output=True, text=True, timeout=300)
     assert r.returncode == 0, r.stderr
     share = prefix / "share" / "sandcell"
-    for script in ENTRY:
-        assert (share / script).is_file(), script
+    assert (share / "sandcell_analysis" / "__main__.py").is_file()
     assert (share / "sandcell_analysis" / "analyze.py").is_file()
     assert not (share / "sandcell_analysis" / "__pycache__").exists()
+    assert not list(share.glob("*.py"))  # no scripts beside the package
     run_dir = tmp_path / "run"
     run_dir.mkdir()
     for b in (0.0, 0.5, 1.0):
@@ -83,6 +57,9 @@ def test_cmake_install_then_triaxial_analyze(tmp_path):
     r = subprocess.run([str(prefix / "bin" / "triaxial"), "analyze", str(tmp_path / "out" / "report.md")],
                        capture_output=True, text=True, timeout=60, env=ENV)
     assert r.returncode == 2 and r.stderr.count("\n") == 1 and "cannot read" in r.stderr, r.stderr
+    r = subprocess.run([str(prefix / "bin" / "triaxial"), "analyze", "--help"], capture_output=True, text=True,
+                       timeout=60, env=ENV)
+    assert r.returncode == 0 and "usage: triaxial analyze" in r.stdout, r.stdout
 
 
 # python -m sandcell_analysis: every command of the package, with PYTHONPATH=apps/analysis (or installed).

@@ -20,7 +20,7 @@ import numpy as np
 from sandcell_analysis import localization as loc
 
 HERE = os.path.dirname(os.path.abspath(__file__))
-SCRIPT = os.path.join(HERE, "..", "..", "apps", "triaxial", "localization.py")  # what `triaxial localization` runs
+LOCALIZATION = [sys.executable, "-m", "sandcell_analysis", "localization"]  # what `triaxial localization` runs
 
 
 N = 40000
@@ -90,7 +90,7 @@ def read_snapshot(path, step):
 
 
 def run(*args):
-    return subprocess.run([sys.executable, SCRIPT, *args], capture_output=True, text=True)
+    return subprocess.run([*LOCALIZATION, *args], capture_output=True, text=True)
 
 
 def expected_band_slope(phi_c, G):

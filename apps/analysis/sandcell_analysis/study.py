@@ -53,7 +53,7 @@ import subprocess
 import sys
 import tomllib
 
-from .dilatancy import slope_max_dilation  # noqa: F401 (apps/triaxial/study.py re-exports it)
+from .dilatancy import slope_max_dilation  # noqa: F401 (re-exported)
 from .results import read_columns, read_index, read_samples
 
 
