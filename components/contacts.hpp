@@ -33,6 +33,9 @@ struct Contacts {
   std::vector<Vec3> rolling;     // (m,3) N m, rolling moment history; rolling system. Empty when
                                  // the scene has no rolling resistance.
   bool has_rolling = false;      // whether `rolling` is allocated
+  std::vector<double> tangential_radius;  // (m) m, contact radius at the last step (tangential law
+                                          // mindlin_rescale); empty for the other laws
+  bool has_tangential_radius = false;     // whether `tangential_radius` is allocated
 
   std::size_t size() const { return pairs.size(); }
 };

@@ -78,6 +78,7 @@ std::string_view first_difference(const Particles& a, const Particles& b) {
 
 std::string_view first_difference(const Contacts& a, const Contacts& b) {
   if (a.has_rolling != b.has_rolling) return "rolling (allocated in one only)";
+  if (a.has_tangential_radius != b.has_tangential_radius) return "tangential_radius (allocated in one only)";
   return first_difference_impl([](const Contacts& c, auto&& fn) { for_each_contact_field(c, fn); }, a, b);
 }
 

@@ -78,6 +78,8 @@ template <class C, class Fn>
 void for_each_contact_history(C& c, Fn&& fn) {
   fn(FieldInfo{"tangential", "m", "contact law", Component::contact_tangential}, c.tangential);
   if (c.has_rolling) fn(FieldInfo{"rolling", "N m", "rolling", Component::contact_rolling}, c.rolling);
+  if (c.has_tangential_radius)
+    fn(FieldInfo{"tangential_radius", "m", "contact law", Component::contact_tangential}, c.tangential_radius);
 }
 
 /// Calls fn(info, vector) for every contact array that the scene allocates, in a fixed order.

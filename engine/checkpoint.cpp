@@ -127,6 +127,7 @@ void write_contents(h5::File& file, const State& state, const CheckpointExtra& e
   h5::Group contacts = root.create_group("contacts");
   contacts.set_value<std::uint64_t>("count", state.contacts.size());
   contacts.set_value<std::int64_t>("has_rolling", state.contacts.has_rolling ? 1 : 0);
+  contacts.set_value<std::int64_t>("has_tangential_radius", state.contacts.has_tangential_radius ? 1 : 0);
   contacts.set_values<double>("reference_length", as_span(state.contacts.pairs.reference_length));
   for_each_contact_field(state.contacts,
                          [&](const FieldInfo& info, const auto& v) { io::write_field(contacts, info, v); });
@@ -226,6 +227,9 @@ State read_checkpoint(const std::filesystem::path& path, CheckpointExtra* extra)
     const std::uint64_t m = contacts.get_value<std::uint64_t>("count");
     // Before the walk: the registry lists `rolling` only when it is allocated.
     state.contacts.has_rolling = contacts.get_value<std::int64_t>("has_rolling") != 0;
+    // Checkpoints of scenes without mindlin_rescale (and from before it) have none.
+    state.contacts.has_tangential_radius = contacts.has_attribute("has_tangential_radius") &&
+                                           contacts.get_value<std::int64_t>("has_tangential_radius") != 0;
     state.contacts.pairs.reference_length = to_vec3(contacts, "reference_length");
     for_each_contact_field(state.contacts,
                            [&](const FieldInfo& info, auto& v) { io::read_field(contacts, info, v, m); });

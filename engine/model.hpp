@@ -17,6 +17,7 @@ namespace sandcell {
 enum class TangentialModel {
   history,      // LIGGGHTS `tangential history`: spring displacement u_t, F_t = -k_t u_t (default)
   incremental,  // stored force, rotated with the contact frame, plus k_t times the increment
+  mindlin_rescale,  // history, the displacement scaled down with the contact radius on unloading (LAMMPS)
 };
 
 /// Rolling resistance (docs/physics.md section 3).

@@ -6,6 +6,7 @@
 #include "engine/assert.hpp"
 
 #include <algorithm>
+#include <type_traits>
 #include <cmath>
 #include <cstdlib>
 #include <limits>
@@ -177,11 +178,21 @@ void group_old_pairs(const ContactPairs& pairs, std::size_t n, BroadphaseScratch
   for (std::size_t k = 0; k < m_old; ++k) bp.old_order[bp.count[pairs.i[k]]++] = static_cast<std::uint32_t>(k);
 }
 
+// The per-contact histories a scene allocates (components/fields.hpp: for_each_contact_history), by
+// element type: 3-vectors (tangential, rolling) and scalars (tangential_radius).
+struct Histories {
+  std::array<std::vector<Vec3>*, 4> vec{};
+  std::size_t n_vec = 0;
+  std::array<std::vector<double>*, 4> scalar{};
+  std::size_t n_scalar = 0;
+};
+
 // Pass 2: fills each particle's slots of the new list (bp.next_pairs, bp.next_history), sorts them
 // canonically by (id_j, image) and carries each pair's histories from the old list by key.
-void fill_pairs(const Candidates& visit, std::size_t m, const ContactPairs& pairs,
-                const std::array<std::vector<Vec3>*, std::size(k_contact_history_components)>& history,
-                std::size_t n_history, BroadphaseScratch& bp, Executor& exec) {
+void fill_pairs(const Candidates& visit, std::size_t m, const ContactPairs& pairs, const Histories& hist,
+                BroadphaseScratch& bp, Executor& exec) {
+  const auto& history = hist.vec;
+  const std::size_t n_history = hist.n_vec, n_scalar = hist.n_scalar;
   const std::size_t n = visit.x.size();
   const std::vector<ParticleId>& id = visit.id;
   ContactPairs& next = bp.next_pairs;
@@ -192,6 +203,8 @@ void fill_pairs(const Candidates& visit, std::size_t m, const ContactPairs& pair
   next.j.resize(m);
   bp.next_history.resize(n_history);
   for (std::size_t h = 0; h < n_history; ++h) bp.next_history[h].resize(m);
+  bp.next_scalar_history.resize(n_scalar);
+  for (std::size_t h = 0; h < n_scalar; ++h) bp.next_scalar_history[h].resize(m);
   exec.parallel_for(n, 256, [&](std::size_t b, std::size_t e) {
     for (std::size_t i = b; i < e; ++i) {
       const std::uint32_t s0 = bp.start[i];
@@ -216,6 +229,7 @@ void fill_pairs(const Candidates& visit, std::size_t m, const ContactPairs& pair
         // History: the same contact (id_i, id_j, image before the wrap) in the old list of i, if
         // any. With x' = x - s L, r = x_i - x_j - n L = x_i' - x_j' - (n - s_i + s_j) L.
         for (std::size_t h = 0; h < n_history; ++h) bp.next_history[h][c].setZero();
+        for (std::size_t h = 0; h < n_scalar; ++h) bp.next_scalar_history[h][c] = 0.0;
         const std::array<int, 3>& s_i = bp.shift[i];
         const std::array<int, 3>& s_j = bp.shift[next.j[c]];
         const Image& img = next.image[c];
@@ -226,6 +240,7 @@ void fill_pairs(const Candidates& visit, std::size_t m, const ContactPairs& pair
         for (std::uint32_t q = bp.old_start[i]; q < bp.old_start[i + 1]; ++q)
           if (const std::uint32_t o = bp.old_order[q]; pairs.id_j[o] == next.id_j[c] && same_contact(pairs.image[o])) {
             for (std::size_t h = 0; h < n_history; ++h) bp.next_history[h][c] = (*history[h])[o];
+            for (std::size_t h = 0; h < n_scalar; ++h) bp.next_scalar_history[h][c] = (*hist.scalar[h])[o];
             break;
           }
       }
@@ -243,11 +258,13 @@ void build_neighbor_list(const Model& model, State& state, Scratch& scratch, Exe
   const Cell& cell = state.read<Component::cell>();
   ContactPairs& pairs = state.write<Component::contact_pairs>();
   // The per-contact histories the scene allocates, from the field registry: carried by key.
-  std::array<std::vector<Vec3>*, std::size(k_contact_history_components)> history{};
-  std::size_t n_history = 0;
-  for_each_contact_history(state.contacts, [&](const FieldInfo& field, std::vector<Vec3>& values) {
+  Histories hist;
+  for_each_contact_history(state.contacts, [&](const FieldInfo& field, auto& values) {
     check_access(field.component, true);
-    history[n_history++] = &values;
+    if constexpr (std::is_same_v<std::decay_t<decltype(values)>, std::vector<Vec3>>)
+      hist.vec[hist.n_vec++] = &values;
+    else
+      hist.scalar[hist.n_scalar++] = &values;
   });
   auto& reference = state.write<Component::particle_reference>();
   GatherIndex& gather = scratch.write<GatherIndex>();
@@ -273,7 +290,7 @@ void build_neighbor_list(const Model& model, State& state, Scratch& scratch, Exe
   const Candidates visit{bins, bp, x, radius, id, length, skin};
   const std::size_t m = count_pairs(visit, n, bp, exec);
   group_old_pairs(pairs, n, bp);
-  fill_pairs(visit, m, pairs, history, n_history, bp, exec);
+  fill_pairs(visit, m, pairs, hist, bp, exec);
 
   ContactPairs& next = bp.next_pairs;
   std::swap(pairs.id_i, next.id_i);
@@ -281,7 +298,8 @@ void build_neighbor_list(const Model& model, State& state, Scratch& scratch, Exe
   std::swap(pairs.image, next.image);
   std::swap(pairs.i, next.i);
   std::swap(pairs.j, next.j);
-  for (std::size_t h = 0; h < n_history; ++h) std::swap(*history[h], bp.next_history[h]);
+  for (std::size_t h = 0; h < hist.n_vec; ++h) std::swap(*hist.vec[h], bp.next_history[h]);
+  for (std::size_t h = 0; h < hist.n_scalar; ++h) std::swap(*hist.scalar[h], bp.next_scalar_history[h]);
   pairs.reference_length = length;
   reference.assign(x.begin(), x.end());
 

@@ -46,6 +46,7 @@ struct BroadphaseScratch {
   std::vector<std::uint32_t> old_order;         // (m_old) -, previous list's pair indices grouped by i
   std::vector<std::array<int, 3>> shift;        // (n) -, cell lengths the last wrap subtracted from each position
   ContactPairs next_pairs;                      // the list being built, swapped with the State's
+  std::vector<std::vector<double>> next_scalar_history;  // (scalar histories)(m) the same for scalar histories
   std::vector<std::vector<Vec3>> next_history;  // (histories)(m,3) the per-contact histories for the list
                                                 //   being built (components/fields.hpp: for_each_contact_history)
   double cutoff = 0.0;                          // m, 2 r_max + skin of the last build

@@ -111,6 +111,7 @@ struct PassData {
   Vec3 rate;                   // 1/s, the cell's strain rate (affine velocity D r)
   double dt;                   // s
   double v_char;               // m/s, for the laws that have one
+  double* __restrict hist_a = nullptr;  // m, the contact radius at the last step (laws with radius_history)
 };
 
 // Last step's regimes (ContactScratch) describe the slots of the list they were made for: a new
@@ -183,6 +184,10 @@ PassData bind_pass(const Model& model, State& state, Scratch& scratch) {
   d.gx = d.x;
   d.gv = d.v;
   d.gw = d.w;
+  if (state.contacts.has_tangential_radius) {  // contact_tangential's access was taken above
+    state.contacts.tangential_radius.resize(m);
+    d.hist_a = state.contacts.tangential_radius.data();
+  }
   // The product img * L exactly as per pair.
   for (int c = 0; c < 27; ++c) {
     const Image img{static_cast<std::int8_t>(c % 3 - 1), static_cast<std::int8_t>(c / 3 % 3 - 1),
@@ -293,6 +298,7 @@ struct ContactKernel {
         d.torque_j[k].setZero();
         d.hist_t[k].setZero();  // history resets when the contact opens
         if constexpr (rolling_history) d.hist_r[k].setZero();
+        if constexpr (Tangential::radius_history) d.hist_a[k] = 0.0;
         d.regime[k] = ContactScratch::k_apart;
         changed = 1;
       }
@@ -316,8 +322,11 @@ struct ContactKernel {
     const double f_n = Normal::force(k_n, gamma_n, c.overlap, v_n);
     const Vec3 v_t = c.v_rel - v_n * c.n + c.n.cross(c.c_i * c.w_i + c.c_j * c.w_j);
     const double f_cap = mat.friction * std::abs(f_n);
-    const TangentialResult tr =
-        Tangential::template force<Update>(c.n, v_t, k_t, Normal::gamma_t(mat, gamma_n), f_cap, d.dt, d.hist_t[k]);
+    double no_radius = 0.0;  // the laws without a radius history neither read nor keep it
+    const double a = Tangential::radius_history ? std::sqrt(c.r_star * c.overlap) : 0.0;  // contact radius, m
+    const TangentialResult tr = Tangential::template force<Update>(
+        c.n, v_t, k_t, Normal::gamma_t(mat, gamma_n), f_cap, d.dt, d.hist_t[k], a,
+        Tangential::radius_history ? d.hist_a[k] : no_radius);
     const Vec3 arm_torque = c.n.cross(tr.f_t);  // torque on i is -c_i n x F_t, on j -c_j n x F_t
     Vec3 t_i = -c.c_i * arm_torque;
     Vec3 t_j = -c.c_j * arm_torque;
@@ -815,6 +824,14 @@ void ContactPass::prepare(const Model& model, State& state) {
       }
     N::validate(model.contact);
   });
+  // Only the tangential laws with a radius history keep one (mindlin_rescale).
+  with_laws(model.contact, [&](auto, auto tangential, auto) {
+    state.contacts.has_tangential_radius = decltype(tangential)::type::radius_history;
+  });
+  if (state.contacts.has_tangential_radius)
+    state.contacts.tangential_radius.resize(state.contacts.size(), 0.0);
+  else
+    state.contacts.tangential_radius.clear();
   // Only the laws with a stored moment keep one (cdt has none).
   state.contacts.has_rolling =
       model.contact.rolling == RollingModel::epsd2 || model.contact.rolling == RollingModel::epsd;
@@ -822,6 +839,44 @@ void ContactPass::prepare(const Model& model, State& state) {
 }
 
 std::string normal_law_names() { return names_of(NormalLaws{}); }
+
+namespace {
+template <class... L>
+std::vector<std::pair<std::string, TangentialModel>> tangential_table(LawList<L...>) {
+  return {{std::string(L::name), L::id}...};
+}
+}  // namespace
+
+std::vector<std::string> tangential_law_names() {
+  std::vector<std::string> out;
+  for (const auto& [name, id] : tangential_table(TangentialLaws{})) out.push_back(name);
+  return out;
+}
+std::optional<TangentialModel> tangential_law(std::string_view name) {
+  for (const auto& [n, id] : tangential_table(TangentialLaws{}))
+    if (n == name) return id;
+  return std::nullopt;
+}
+std::string tangential_law_name(TangentialModel law) {
+  for (const auto& [n, id] : tangential_table(TangentialLaws{}))
+    if (id == law) return n;
+  return "?";
+}
+std::vector<std::string> rolling_law_names() {
+  std::vector<std::string> out;
+  for (const RollingLawInfo& r : k_rolling_laws) out.emplace_back(r.name);
+  return out;
+}
+std::optional<RollingModel> rolling_law(std::string_view name) {
+  for (const RollingLawInfo& r : k_rolling_laws)
+    if (r.name == name) return r.id;
+  return std::nullopt;
+}
+std::string rolling_law_name(RollingModel law) {
+  for (const RollingLawInfo& r : k_rolling_laws)
+    if (r.id == law) return std::string(r.name);
+  return "?";
+}
 
 double contact_elastic_energy(const Model& model, const State& state) {
   if (model.pairs.empty()) return 0.0;  // a model World has not finalized: no material table

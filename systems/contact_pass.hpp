@@ -20,7 +20,9 @@
 // run-time switches.
 #include "engine/system.hpp"
 
+#include <optional>
 #include <string>
+#include <string_view>
 #include <vector>
 
 namespace sandcell {
@@ -68,5 +70,14 @@ double contact_elastic_energy(const Model& model, const State& state);
 
 /// The registered normal laws' names, comma-separated (for messages).
 std::string normal_law_names();
+
+// The tangential and rolling laws by name (systems/laws/mindlin.hpp TangentialLaws, rolling.hpp
+// k_rolling_laws): what the apps' configs, dem-bench and Python accept.
+std::vector<std::string> tangential_law_names();
+std::optional<TangentialModel> tangential_law(std::string_view name);
+std::string tangential_law_name(TangentialModel law);
+std::vector<std::string> rolling_law_names();
+std::optional<RollingModel> rolling_law(std::string_view name);
+std::string rolling_law_name(RollingModel law);
 
 }  // namespace sandcell

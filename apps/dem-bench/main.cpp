@@ -29,6 +29,7 @@
 #include "engine/fnv1a.hpp"
 #include "engine/packing.hpp"
 #include "engine/world.hpp"
+#include "systems/contact_pass.hpp"
 #include "systems/broadphase.hpp"
 #include "systems/catalogue.hpp"
 #include "systems/stress.hpp"
@@ -374,10 +375,10 @@ std::optional<int> parse_command_line(int argc, char** argv, Options& o, Model& 
       ->check(number_in(1, 1000));
   app.add_option("--rolling", o.rolling, "rolling resistance (default epsd2)")
       ->type_name("MODEL")
-      ->check(CLI::IsMember(std::vector<std::string>{"none", "epsd2", "epsd", "cdt"}));
+      ->check(CLI::IsMember(rolling_law_names()));
   app.add_option("--tangential", o.tangential, "tangential history (default history)")
       ->type_name("MODEL")
-      ->check(CLI::IsMember(std::vector<std::string>{"history", "incremental"}));
+      ->check(CLI::IsMember(tangential_law_names()));
   // The normal law by its registered name (hertz, hooke); hooke takes --vchar. The engine checks
   // both when the world is built and refuses an unknown name, listing the registered ones.
   app.add_option("--normal", o.normal, "normal contact law by its registered name (default hertz)")->type_name("LAW");
@@ -395,18 +396,9 @@ std::optional<int> parse_command_line(int argc, char** argv, Options& o, Model& 
   }
   // What is not given keeps the Model's default.
   if (o.compat) model.contact.liggghts_compat = true;
-  if (app.count("--rolling") > 0) {
-    if (o.rolling == "none")
-      model.contact.rolling = RollingModel::none;
-    else if (o.rolling == "epsd2")
-      model.contact.rolling = RollingModel::epsd2;
-    else if (o.rolling == "epsd")
-      model.contact.rolling = RollingModel::epsd;
-    else
-      model.contact.rolling = RollingModel::cdt;
-  }
-  if (app.count("--tangential") > 0)
-    model.contact.tangential = o.tangential == "incremental" ? TangentialModel::incremental : TangentialModel::history;
+  // The laws by their registered names (CLI11 let only those through).
+  if (app.count("--rolling") > 0) model.contact.rolling = rolling_law(o.rolling).value();
+  if (app.count("--tangential") > 0) model.contact.tangential = tangential_law(o.tangential).value();
   if (app.count("--normal") > 0) model.contact.normal = o.normal;
   if (app.count("--vchar") > 0) model.contact.parameters["characteristic_velocity"] = o.vchar;
   return std::nullopt;

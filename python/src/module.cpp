@@ -6,6 +6,7 @@
 #include <sandcell/sandcell.hpp>
 
 #include "protocol/series.hpp"
+#include "systems/contact_pass.hpp"
 #include "systems/homogenizer.hpp"
 #include "systems/path_watch.hpp"
 #include "systems/servo.hpp"
@@ -34,7 +35,7 @@ namespace {
 
 template <class E>
 struct Names {
-  std::vector<std::pair<const char*, E>> items;
+  std::vector<std::pair<std::string, E>> items;
   E parse(const std::string& key, const std::string& value) const {
     for (const auto& [n, e] : items)
       if (value == n) return e;
@@ -57,12 +58,17 @@ const Names<StressPath> k_paths = [] {
 }();
 const Names<AxisControl> k_controls{
     {{"strain", AxisControl::strain}, {"stress", AxisControl::stress}, {"volume", AxisControl::volume}}};
-const Names<TangentialModel> k_tangential{
-    {{"history", TangentialModel::history}, {"incremental", TangentialModel::incremental}}};
-const Names<RollingModel> k_rolling{{{"none", RollingModel::none},
-                                     {"epsd2", RollingModel::epsd2},
-                                     {"epsd", RollingModel::epsd},
-                                     {"cdt", RollingModel::cdt}}};
+// The laws' names: their registries (systems/laws/mindlin.hpp TangentialLaws, rolling.hpp k_rolling_laws).
+const Names<TangentialModel> k_tangential = [] {
+  Names<TangentialModel> n;
+  for (const std::string& name : tangential_law_names()) n.items.emplace_back(name, *tangential_law(name));
+  return n;
+}();
+const Names<RollingModel> k_rolling = [] {
+  Names<RollingModel> n;
+  for (const std::string& name : rolling_law_names()) n.items.emplace_back(name, *rolling_law(name));
+  return n;
+}();
 
 std::array<AxisControl, 3> parse_controls(const std::string& key, const std::vector<std::string>& names) {
   if (names.size() != 3)
@@ -238,6 +244,7 @@ py::dict contact_views(const py::object& owner, const State& s) {
   d["torque_i"] = view(owner, c.forces.torque_i, true);
   d["torque_j"] = view(owner, c.forces.torque_j, true);
   d["tangential"] = view(owner, c.tangential, true);
+  if (c.has_tangential_radius) d["tangential_radius"] = view(owner, c.tangential_radius, false);
   if (c.has_rolling) d["rolling"] = view(owner, c.rolling, true);
   return d;
 }

@@ -9,10 +9,18 @@
 // MindlinIncremental: stored elastic force F_s (N), rotated into the new tangent plane (projected,
 //   magnitude kept), F_s -= k_t v_t dt; at the cap F_s is scaled to mu |F_n| and F_t = F_s, else
 //   F_t = F_s - gamma_t v_t.
+// MindlinRescale (LAMMPS GRANULAR `tangential mindlin_rescale`): MindlinHistory, and when the
+//   contact unloads (its radius a = sqrt(R* delta) below the last step's a_prev) the displacement
+//   is first scaled by a / a_prev, so a contact that shrinks does not keep a tangential force its
+//   smaller area (k_t = 8 G* a) can no longer carry elastically; a_prev is a per-contact history
+//   (Contacts::tangential_radius, m, allocated only for this law).
+// Each law: `name` (ContactSettings::tangential's value; the registry is TangentialLaws below),
+// `id`, `radius_history` (whether it keeps a_prev), force<Update>(..., a, a_prev) and energy.
 // Update: whether the history advances (false in the setup pass, which freezes it).
 #include "systems/laws/law.hpp"
 
 #include <cmath>
+#include <string_view>
 
 namespace sandcell {
 
@@ -22,11 +30,14 @@ struct TangentialResult {
 };
 
 struct MindlinHistory {
+  static constexpr std::string_view name = "history";
   static constexpr TangentialModel id = TangentialModel::history;
+  static constexpr bool radius_history = false;
 
   template <bool Update>
   [[gnu::always_inline]] static inline TangentialResult force(const Vec3& n, const Vec3& v_t, double k_t,
-                                                              double gamma_t, double f_cap, double dt, Vec3& history) {
+                                                              double gamma_t, double f_cap, double dt, Vec3& history,
+                                                              double /*a*/, double& /*a_prev*/) {
     Vec3 h = history;
     if constexpr (Update) h += v_t * dt;
     h -= h.dot(n) * n;
@@ -48,11 +59,14 @@ struct MindlinHistory {
 };
 
 struct MindlinIncremental {
+  static constexpr std::string_view name = "incremental";
   static constexpr TangentialModel id = TangentialModel::incremental;
+  static constexpr bool radius_history = false;
 
   template <bool Update>
   [[gnu::always_inline]] static inline TangentialResult force(const Vec3& n, const Vec3& v_t, double k_t,
-                                                              double gamma_t, double f_cap, double dt, Vec3& history) {
+                                                              double gamma_t, double f_cap, double dt, Vec3& history,
+                                                              double /*a*/, double& /*a_prev*/) {
     Vec3 h = history;
     const double old2 = h.squaredNorm();
     h -= h.dot(n) * n;
@@ -76,6 +90,25 @@ struct MindlinIncremental {
   static double energy(double k_t, double h2) { return 0.5 * h2 / k_t; }
 };
 
-using TangentialLaws = LawList<MindlinHistory, MindlinIncremental>;
+struct MindlinRescale {
+  static constexpr std::string_view name = "mindlin_rescale";
+  static constexpr TangentialModel id = TangentialModel::mindlin_rescale;
+  static constexpr bool radius_history = true;
+
+  template <bool Update>
+  [[gnu::always_inline]] static inline TangentialResult force(const Vec3& n, const Vec3& v_t, double k_t,
+                                                              double gamma_t, double f_cap, double dt, Vec3& history,
+                                                              double a, double& a_prev) {
+    if constexpr (Update) {
+      if (a < a_prev) history *= a / a_prev;  // unloading: the displacement shrinks with the contact
+      a_prev = a;
+    }
+    return MindlinHistory::force<Update>(n, v_t, k_t, gamma_t, f_cap, dt, history, a, a_prev);
+  }
+  static double energy(double k_t, double h2) { return MindlinHistory::energy(k_t, h2); }
+};
+
+// The registry of tangential laws: ContactSettings::tangential names one of them by `name`.
+using TangentialLaws = LawList<MindlinHistory, MindlinIncremental, MindlinRescale>;
 
 }  // namespace sandcell

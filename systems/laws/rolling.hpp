@@ -16,8 +16,22 @@
 #include "systems/laws/law.hpp"
 
 #include <cmath>
+#include <string_view>
 
 namespace sandcell {
+
+/// The registry of rolling laws: ContactSettings::rolling's names and what each keeps per contact.
+struct RollingLawInfo {
+  RollingModel id;
+  std::string_view name;
+  std::string_view history;  // the per-contact history it keeps ("" none), Contacts::rolling
+};
+inline constexpr RollingLawInfo k_rolling_laws[] = {
+    {RollingModel::none, "none", ""},
+    {RollingModel::epsd2, "epsd2", "rolling moment, N m"},
+    {RollingModel::epsd, "epsd", "rolling moment, N m"},
+    {RollingModel::cdt, "cdt", ""},
+};
 
 struct RollingInput {
   const Vec3& n;    // unit normal, j to i

@@ -66,7 +66,7 @@ PARAMETERS = {
 # The discrete choices a calibration may make: config key -> the options allowed.
 CHOICES = {
     "contact.rolling": ("none", "epsd2", "epsd", "cdt"),
-    "contact.tangential": ("history", "incremental"),
+    "contact.tangential": ("history", "incremental", "mindlin_rescale"),
 }
 
 # Campaign measures (triaxial analyze's summary.json): name -> path of keys.

@@ -99,6 +99,19 @@ class Section {
     }
     fail(key, "\"" + s + "\"", allowed);
   }
+  /// One of `names` (a law registry's), parsed by `parse` into `out`.
+  template <class E, class Parse>
+  void registered(const std::string& key, E& out, const std::vector<std::string>& names, Parse parse) {
+    std::string s;
+    if (!string(key, s)) return;
+    if (const auto v = parse(s)) {
+      out = *v;
+      return;
+    }
+    std::string allowed = "allowed:";
+    for (const std::string& n : names) allowed += " \"" + n + "\"";
+    fail(key, "\"" + s + "\"", allowed);
+  }
   /// A number or an array of numbers.
   std::vector<double> numbers(const std::string& key, const std::string& allowed) {
     const toml::node* node = get(key);
@@ -297,13 +310,9 @@ void parse_contact(const toml::table& root, const std::string& source, ContactSe
   if (k.normal != "hooke" && v_char != 0.0)
     s.fail("characteristic_velocity", num(v_char), "only with normal = \"hooke\"");
   if (v_char > 0.0) k.parameters["characteristic_velocity"] = v_char;
-  s.choice("tangential", k.tangential,
-           {{"history", TangentialModel::history}, {"incremental", TangentialModel::incremental}});
-  s.choice("rolling", k.rolling,
-           {{"epsd2", RollingModel::epsd2},
-            {"epsd", RollingModel::epsd},
-            {"cdt", RollingModel::cdt},
-            {"none", RollingModel::none}});
+  // The laws by their registered names (systems/laws/: TangentialLaws, k_rolling_laws).
+  s.registered("tangential", k.tangential, tangential_law_names(), [](const std::string& n) { return tangential_law(n); });
+  s.registered("rolling", k.rolling, rolling_law_names(), [](const std::string& n) { return rolling_law(n); });
   s.number("rolling_damping", k.rolling_damping, 0.0, 10.0, "must be in [0, 10]");
   s.number("skin", k.skin, 0.0, 1.0, "must be in [0, 1] m (0: 0.1 x the smallest diameter)");
   s.integer("sort_interval", k.sort_interval, 0, 1'000'000'000, "must be an integer >= 0 steps (0: never)");

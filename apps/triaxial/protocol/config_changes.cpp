@@ -4,6 +4,8 @@
 
 #include "protocol/text.hpp"
 
+#include "systems/contact_pass.hpp"
+
 #include <toml++/toml.h>
 
 #include <map>
@@ -57,16 +59,8 @@ namespace {
 const char* distribution_name(SizeDistribution::Kind k) {
   return k == SizeDistribution::Kind::gradation ? "gradation" : "uniform";
 }
-const char* tangential_name(TangentialModel m) { return m == TangentialModel::incremental ? "incremental" : "history"; }
-const char* rolling_name(RollingModel m) {
-  switch (m) {
-    case RollingModel::epsd2: return "epsd2";
-    case RollingModel::epsd: return "epsd";
-    case RollingModel::cdt: return "cdt";
-    case RollingModel::none: return "none";
-  }
-  return "?";
-}
+std::string tangential_name(TangentialModel m) { return tangential_law_name(m); }
+std::string rolling_name(RollingModel m) { return rolling_law_name(m); }
 
 // The values of the keys that shape a prepared sample, as text, in the order they are reported.
 // material.friction and rolling_friction are left out (the preparation uses prepare.*; the
