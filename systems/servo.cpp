@@ -250,6 +250,32 @@ CyclicPath::CyclicPath(const CyclicSettings& settings) : settings_(settings), me
   validate(settings_);
 }
 
+std::vector<double> CyclicPath::save() const {
+  const Memory& m = *memory_;
+  std::vector<double> out{m.up ? 1.0 : 0.0, double(m.reversals), m.finished ? 1.0 : 0.0};
+  for (std::size_t k = 0; k < m.reversal_strain.size(); ++k) {
+    out.push_back(m.reversal_strain[k]);
+    out.push_back(double(m.reversal_step[k]));  // exact below 2^53 steps
+  }
+  return out;
+}
+
+void CyclicPath::restore(const std::vector<double>& saved) const {
+  if (saved.size() < 3 || (saved.size() - 3) % 2 != 0 || saved[1] != double((saved.size() - 3) / 2))
+    throw std::invalid_argument("CyclicPath::restore: " + std::to_string(saved.size()) +
+                                " values: not a saved cyclic path (3 + 2 per reversal)");
+  Memory& m = *memory_;
+  m.up = saved[0] != 0.0;
+  m.reversals = static_cast<int>(saved[1]);
+  m.finished = saved[2] != 0.0;
+  m.reversal_strain.clear();
+  m.reversal_step.clear();
+  for (std::size_t k = 3; k < saved.size(); k += 2) {
+    m.reversal_strain.push_back(saved[k]);
+    m.reversal_step.push_back(static_cast<std::uint64_t>(saved[k + 1]));
+  }
+}
+
 PathTargets CyclicPath::operator()(const PathInput& in) const {
   const CyclicSettings& c = settings_;
   Memory& m = *memory_;

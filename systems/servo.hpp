@@ -90,7 +90,8 @@ struct CyclicSettings {
 void validate(const CyclicSettings& settings);
 
 /// The cyclic path: a callable with memory (the direction, the reversals), shared by its copies.
-/// Its memory is not in checkpoints: a resumed cyclic test makes a new path.
+/// Its memory is not in the State: save() and restore() carry it (the triaxial app puts it in its
+/// checkpoints' extras, so a resumed cyclic test goes on where it stopped).
 class CyclicPath {
  public:
   explicit CyclicPath(const CyclicSettings& settings);
@@ -103,6 +104,9 @@ class CyclicPath {
   /// The strain (eps1) and step of each reversal.
   const std::vector<double>& reversal_strains() const { return memory_->reversal_strain; }
   const std::vector<std::uint64_t>& reversal_steps() const { return memory_->reversal_step; }
+  /// The memory as numbers (up, reversals, finished, then each reversal's strain and step), and back.
+  std::vector<double> save() const;
+  void restore(const std::vector<double>& saved) const;  // the memory is shared: const as operator()
 
  private:
   struct Memory {

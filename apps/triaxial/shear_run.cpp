@@ -116,6 +116,7 @@ class ShearRun {
   CheckpointExtra extras() const;
   static double axial_strain(const Cell& cell) { return -std::log(cell.length[0] / cell.length0[0]); }
   bool finished(std::uint64_t s, double eps1) const {
+    if (cyclic_ && cyclic_->finished()) return true;  // cyclic.cycles or cyclic.max_strain reached
     return test_.path == ShearPath::strain ? s >= h_.steps : eps1 >= max_strain_;
   }
   bool progress_due() const {
@@ -141,6 +142,8 @@ class ShearRun {
   std::optional<ResultsFile> results_;
   bool resumed_ = false;
   std::optional<World> world_;
+  const CyclicPath* cyclic_ = nullptr;  // a cyclic test's path (its memory: the world's model's)
+  std::vector<double> cyclic_memory_;    // its memory from the checkpoint of a resumed test
   MeasureOptions mo_;
   Measures m_;  // the last row's
   std::uint64_t rows_ = 0;
@@ -169,6 +172,8 @@ bool ShearRun::open(const Runner& runner, const fs::path& sample) {
   }
   world_.emplace(model, std::move(state), systems_for(model),
                  ExecutorConfig{Backend::tbb, plan_.job_threads, plan_.partition}, false);
+  cyclic_ = cyclic_path(world_->model());
+  if (cyclic_ && !cyclic_memory_.empty()) cyclic_->restore(cyclic_memory_);  // a resumed cyclic test
   mo_.d50 = median_diameter(world_->state().particles);
   mo_.density = plan_.config.material.density;
   log_.line(test_.name + ": " + path_name(test_.path) +
@@ -188,6 +193,7 @@ void ShearRun::resume(const State& state, CheckpointExtra& extra) {
   history_.load(extra);
   watch_.restore(extra.doubles["watch_worst"]);
   if (extra.doubles.count("path_watch")) path_watch_.restore(extra.doubles["path_watch"]);
+  if (extra.doubles.count("cyclic_path")) cyclic_memory_ = extra.doubles["cyclic_path"];
   results_.emplace(ResultsFile::reopen(path_, state.clock.step));
   resumed_ = true;
   log_.line(test_.name + ": resumed at step " + std::to_string(state.clock.step));
@@ -233,6 +239,7 @@ CheckpointExtra ShearRun::extras() const {
   CheckpointExtra x = history_.save();
   x.doubles["watch_worst"] = watch_.worst_values();
   x.doubles["path_watch"] = path_watch_.save();
+  if (cyclic_) x.doubles["cyclic_path"] = cyclic_->save();
   if (summary_.left_path()) x.strings["path_failure"] = summary_.reason;
   return x;
 }

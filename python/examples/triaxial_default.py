@@ -36,6 +36,7 @@ sc.write_checkpoint(f"{out}/sample-{sc.p0_tag(p0)}.h5", sample, {"doubles": {"p0
 # Shear: the test's path from the prepared sample to max_axial_strain, watched.
 model = proto.shear_model(test.name)
 world = sc.World(model, proto.start_test(test.name, sample), threads=2, initial_forces=False)
+cyclic = proto.cyclic_path(model)  # a cyclic test ends with its path; None for the others
 watch = proto.path_watch(test.name)
 eps_max = proto.shear["max_axial_strain"]
 attributes = {"job": test.name, "stage": "shear", "path": test.path, "b": "%.6g" % test.b, "p0": "%.6g" % p0}
@@ -51,10 +52,10 @@ with sc.ResultsFile.create(f"{out}/{test.name}.h5", proto.text, attributes) as r
     m, failure = row(results)
     results.write_snapshot(world)
     while True:
-        world.step_until(10**12, every=series, max_strain=eps_max)
+        world.step_until(10**12, every=series, max_strain=eps_max, path=cyclic)
         m, failure = row(results)
-        if m.strain[0] >= eps_max or (failure and proto.watch_stop):  # a test that leaves its path stops, failed
-            break
+        if m.strain[0] >= eps_max or (cyclic and cyclic.finished) or (failure and proto.watch_stop):
+            break  # (a test that leaves its path stops, failed)
     results.write_snapshot(world)
     results.set_attribute("/", "status", "failed" if watch.failed else "done")  # the verdict, as the app writes it
     results.set_attribute("/", "status_reason", watch.message)

@@ -136,6 +136,13 @@ void bind_protocol(py::module_& m) {
           "path_watch", [](const Protocol& p, const py::object& t) { return make_path_watch(p, test_of(p, t)); },
           py::arg("test"), "The test's stress-path watchdog ([watch], checks from the ramp's end)")
       .def(
+          "cyclic_path",
+          [](const Protocol&, const Model& model) -> py::object {
+            const CyclicPath* c = cyclic_path(model);
+            return c ? py::cast(*c) : py::none();  // a copy: the memory is shared with the model's (and a World's)
+          },
+          py::arg("model"), "The CyclicPath of a cyclic test's model (for World.step_until(path=...)), else None")
+      .def(
           "start_test",
           [](const Protocol& p, const py::object& t, State state) {
             start_test(p, test_of(p, t), state);

@@ -1,6 +1,7 @@
 """The app's test written in Python (examples/triaxial_default.py, two stage loops over
 sandcell.Protocol) against the app itself (`triaxial`), on small configs of the app's form: the
-default path (small.toml, constant p) and the undrained path chosen from TOML (small-undrained.toml):
+default path (small.toml, constant p) and the undrained and cyclic paths chosen from TOML
+(small-undrained.toml, small-cyclic.toml):
 the prepared sample (a checkpoint: every particle and contact array, the cell, the clock) and the
 shear results file (every /series dataset but wall_time, every snapshot array and attribute) are
 compared bit for bit."""
@@ -14,7 +15,7 @@ import pytest
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 EXAMPLE = os.path.join(HERE, "..", "examples", "triaxial_default.py")
-CASES = {"small.toml": "p-b0.50-p0_500kPa", "small-undrained.toml": "u-p0_500kPa"}
+CASES = {"small.toml": "p-b0.50-p0_500kPa", "small-undrained.toml": "u-p0_500kPa", "small-cyclic.toml": "cyc-p0_500kPa"}
 
 
 def datasets(group, prefix=""):

@@ -16,8 +16,8 @@ from .reference import STUDY
 from .results import b_key, read_columns, read_job
 
 PATH_LABEL = {"constant_p": "constant p", "constant_sigma3": "constant sigma3", "strain": "strain",
-              "undrained": "undrained"}
-PATH_MARKER = {"constant_p": "o", "constant_sigma3": "s", "strain": "^", "undrained": "D"}
+              "undrained": "undrained", "cyclic": "cyclic"}
+PATH_MARKER = {"constant_p": "o", "constant_sigma3": "s", "strain": "^", "undrained": "D", "cyclic": "v"}
 
 
 def pyplot():

@@ -16,7 +16,8 @@ import numpy as np  # noqa: E402
 from .m_theta import lode_from_b  # noqa: E402
 
 NAN = float("nan")
-PATHS = ("constant_p", "constant_sigma3", "strain", "undrained")  # the app's tests.path names (protocol/paths.cpp)
+# the app's tests.path names, in the order of its registry (apps/triaxial/protocol/paths.cpp)
+PATHS = ("constant_p", "constant_sigma3", "strain", "undrained", "cyclic")
 
 
 class InputError(Exception):

@@ -197,8 +197,8 @@ toml::table parse_toml(const std::string& text, const std::string& source) {
 
 // Every top-level key must be one of the known tables.
 void check_sections(const toml::table& root, const std::string& source) {
-  static const char* const sections[] = {"sample", "material", "contact", "time", "prepare",
-                                         "shear",  "tests",    "output",  "watch"};
+  static const char* const sections[] = {"sample", "material", "contact", "time",  "prepare",
+                                         "shear",  "tests",    "output",  "watch", "cyclic"};
   for (const auto& [key, node] : root) {
     bool known = false;
     for (const char* s : sections) known = known || key.str() == s;
@@ -206,7 +206,7 @@ void check_sections(const toml::table& root, const std::string& source) {
       throw ConfigError(source + ": [" + std::string(key.str()) +
                         "]: " + (known ? "must be a table" : "unknown section") +
                         "; allowed sections: [sample] [material] [contact] [time] [prepare] [shear] [tests] [output] "
-                        "[watch]");
+                        "[watch] [cyclic]");
   }
 }
 
@@ -549,6 +549,36 @@ void check_prepare_step(const Config& c, const std::string& source) {
 }  // namespace
 
 // [watch]: the stress-path watchdog's tolerances (ranges as sandcell::validate(PathTolerance)).
+// [cyclic]: the cyclic path's bounds, count and drainage (CyclicConfig); checked against the tests'
+// paths in check_cyclic.
+void parse_cyclic(const toml::table& root, const std::string& source, CyclicConfig& c) {
+  c.given = root.contains("cyclic");
+  Section s = section(root, "cyclic", source);
+  s.choice("axial", c.axial, {{"stress", std::string("stress")}, {"strain", std::string("strain")}});
+  s.number("lower", c.lower, -10.0, 10.0, "must be in [-10, 10] (q/p0 in stress mode, axial strain in strain mode)");
+  s.number("upper", c.upper, -10.0, 10.0, "must be in [-10, 10] (q/p0 in stress mode, axial strain in strain mode)");
+  s.number("tolerance", c.tolerance, 0.0, 0.49, "must be in [0, 0.49] (stress mode: reversal within this share of "
+           "upper - lower)");
+  s.boolean("undrained", c.undrained);
+  s.integer("cycles", c.cycles, 0, 1000000, "must be an integer in [0, 1e6] (0: no limit)");
+  s.number("max_strain", c.max_strain, 0.0, 2.0, "must be in [0, 2] (|eps1| that ends the test; 0: no limit)");
+  s.check_unknown();
+}
+
+void check_cyclic(const Config& c, const std::string& source) {
+  bool cyclic = false;
+  for (const TestSpec& t : c.tests) cyclic = cyclic || t.path == ShearPath::cyclic;
+  if (c.cyclic.given && !cyclic)
+    throw ConfigError(source + ": [cyclic]: no test of tests.path is \"cyclic\"; allowed: leave the table out");
+  if (!cyclic) return;
+  if (!(c.cyclic.upper > c.cyclic.lower))
+    throw ConfigError(source + ": cyclic.upper = " + num(c.cyclic.upper) + ": must be > cyclic.lower = " +
+                      num(c.cyclic.lower) + " (both required with tests.path = \"cyclic\")");
+  if (c.cyclic.cycles == 0 && c.cyclic.max_strain == 0.0)
+    throw ConfigError(source + ": cyclic.cycles = 0 and cyclic.max_strain = 0: a cyclic test needs an end; "
+                      "allowed: cycles >= 1, or max_strain > 0");
+}
+
 void parse_watch(const toml::table& root, const std::string& source, WatchConfig& w) {
   Section s = section(root, "watch", source);
   PathTolerance& t = w.tolerance;
@@ -580,6 +610,8 @@ Config parse_config(const std::string& text, const std::string& source) {
   parse_tests(root, source, c);
   parse_output(root, source, c.output);
   parse_watch(root, source, c.watch);
+  parse_cyclic(root, source, c.cyclic);
+  check_cyclic(c, source);
   check_shear_for_tests(c, source);
   check_prepare_step(c, source);
   return c;

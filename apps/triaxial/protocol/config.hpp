@@ -39,7 +39,7 @@ struct PrepareConfig {
 };
 
 /// The path of a test (tests.path); its name and needs are its row in protocol/paths.cpp.
-enum class ShearPath { constant_p, constant_sigma3, strain, undrained };
+enum class ShearPath { constant_p, constant_sigma3, strain, undrained, cyclic };
 
 struct ShearConfig {
   double strain_rate = 0.0;          // 1/s, axial (axis 1) compression rate of the stress paths (0: not given)
@@ -78,6 +78,19 @@ struct OutputConfig {
   double max_size_gib = 64.0;             // GiB, largest estimated size of the run's results files (refused above)
 };
 
+/// [cyclic]: the cyclic path's settings (tests.path = "cyclic"; systems/servo.hpp CyclicSettings). In
+/// stress mode the bounds are q / p0 (so one table serves every p0 of a campaign); in strain mode
+/// axial strains, compressed at shear.strain_rate. The drained form holds sigma3 = p0.
+struct CyclicConfig {
+  std::string axial = "stress";  // "stress" (q between the bounds) or "strain" (eps1 between them)
+  double lower = 0.0, upper = 0.0;
+  double tolerance = 0.02;
+  bool undrained = true;
+  int cycles = 0;
+  double max_strain = 0.0;
+  bool given = false;  // the table is in the file
+};
+
 /// [watch]: the stress-path watchdog of the shearing stage (systems/path_watch.hpp). `start` is
 /// not a key: the checks begin at the end of the ramp (shear.ramp_strain).
 struct WatchConfig {
@@ -98,6 +111,7 @@ struct Config {
   int parallel = 1;             // tests run at once (the thread budget is split between them)
   OutputConfig output;
   WatchConfig watch;
+  CyclicConfig cyclic;
 };
 
 /// The embedded default: ~2000 spheres prepared at 0.5 MPa, sheared along constant p, b = 0.5, to

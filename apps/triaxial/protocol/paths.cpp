@@ -16,6 +16,9 @@ constexpr TestPath k_paths[] = {
     {ShearPath::undrained, "undrained", "u", false, false, false, false,
      "constant volume: axis 1 compressed at shear.strain_rate, axes 2 and 3 at the common rate that keeps eps_v = 0 "
      "(the excess pore pressure of the saturated sample is u = p0 - p')"},
+    {ShearPath::cyclic, "cyclic", "cyc", false, false, false, false,
+     "[cyclic]: q/p0 (stress mode) or eps1 (strain mode, at shear.strain_rate) between the bounds, undrained or at "
+     "sigma3 = p0, until cyclic.cycles or cyclic.max_strain"},
 };
 
 constexpr bool in_enum_order() {

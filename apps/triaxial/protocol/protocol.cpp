@@ -207,6 +207,23 @@ Model shear_model(const Protocol& plan, const TestSpec& test) {
       s.path = StressPath::custom;
       s.custom = undrained_path(h.strain_rate);
       break;
+    case ShearPath::cyclic: {  // axis 1 between the [cyclic] bounds, laterally undrained or at sigma3 = p0
+      const CyclicConfig& c = plan.config.cyclic;
+      CyclicSettings cs;
+      cs.axial = c.axial == "strain" ? AxisControl::strain : AxisControl::stress;
+      const double unit = c.axial == "strain" ? 1.0 : test.p0;  // stress mode: the bounds are q/p0
+      cs.lower = c.lower * unit;
+      cs.upper = c.upper * unit;
+      cs.rate = h.strain_rate;
+      cs.tolerance = c.tolerance;
+      cs.undrained = c.undrained;
+      cs.sigma3 = test.p0;
+      cs.cycles = c.cycles;
+      cs.max_strain = c.max_strain;
+      s.path = StressPath::custom;
+      s.custom = CyclicPath(cs);
+      break;
+    }
     case ShearPath::strain: break;
   }
   s.control = {AxisControl::strain, AxisControl::stress, AxisControl::stress};
@@ -266,10 +283,16 @@ void start_test(const Protocol& protocol, const TestSpec& test, State& state) {
   state.cell.servo_integral.setZero();  // servo state resets between stages
   if (test.path == ShearPath::strain)
     state.cell.rate = -h.strain_rates;
+  else if (test.path == ShearPath::cyclic)
+    state.cell.rate.setZero();  // the path's first update sets every axis
   else
     state.cell.rate = Vec3(h.ramp_strain > 0.0 ? 0.0 : -axial_rate(protocol, test.p0), 0.0, 0.0);
 }
 
 void finish_preparation(State& state) { state.cell.length0 = state.cell.length; }
+
+const CyclicPath* cyclic_path(const Model& model) {
+  return model.servo.path == StressPath::custom ? model.servo.custom.target<CyclicPath>() : nullptr;
+}
 
 }  // namespace sandcell::triaxial

@@ -10,6 +10,7 @@
 #include "engine/packing.hpp"
 #include "engine/state.hpp"
 #include "systems/path_watch.hpp"
+#include "systems/servo.hpp"
 
 #include <string>
 #include <vector>
@@ -64,6 +65,10 @@ void start_test(const Protocol& protocol, const TestSpec& test, State& state);
 
 /// The end of a preparation: the strains of the tests count from the prepared sample.
 void finish_preparation(State& state);
+
+/// The cyclic path of a cyclic test's model (its memory shared with every copy of the model, e.g.
+/// the World's), or nullptr for the other paths.
+const CyclicPath* cyclic_path(const Model& model);
 
 /// "p0_500kPa": the tag of a p0 in file names.
 std::string p0_tag(double p0);
