@@ -25,7 +25,7 @@ c.undrained, c.cycles, c.max_strain = True, 10, 0.05
 path = sc.CyclicPath(c)
 s = model.servo
 s.enabled, s.max_rate, s.custom = True, 1.0, path
-s.gain, s.integral_time = sc.derived_gain(0.1, p0, model.materials[0], model.dt), 1000 * model.dt
+s.gain, s.integral_time = sc.derived_servo("shear", p0, model.materials[0], model.dt)  # the app's
 world = sc.World(model, state, threads=2, initial_forces=False)
 rows = []
 while not path.finished:

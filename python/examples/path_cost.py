@@ -21,7 +21,7 @@ contact.skin, contact.sort_interval = 0.5e-3, 1000
 model = sc.Model(0.2 * sc.rayleigh_time(2.5e-3, mat), [mat], contact)
 s = model.servo
 s.enabled, s.path, s.control, s.p, s.max_rate = True, "isotropic", ["stress"] * 3, 1e5, 5.0
-s.gain = sc.derived_gain(0.05, 1e5, mat, model.dt)
+s.gain = sc.derived_servo("prepare", 1e5, mat, model.dt)[0]
 world = sc.World(model, sc.State.generate(model, n, 5e-3, 7.5e-3, seed=2), threads=threads)
 while max(abs(world.measure().stress[k, k] - 1e5) for k in range(3)) > 1e3:
     world.step(1000)

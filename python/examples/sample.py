@@ -12,7 +12,7 @@ def prepare(count=500, p0=1e5, friction=0.5, seed=1, threads=2):
     prep = sc.Model(0.2 * t_r, [sc.Material(young=7e9, friction=friction)], contact)
     s = prep.servo
     s.enabled, s.path, s.control, s.p, s.max_rate = True, "isotropic", ["stress"] * 3, p0, 5.0
-    s.gain = sc.derived_gain(0.05, p0, mat, 0.2 * t_r)
+    s.gain = sc.derived_servo("prepare", p0, mat, 0.2 * t_r)[0]
     world = sc.World(prep, sc.State.generate(prep, count, 5e-3, 7.5e-3, seed=seed), threads=threads)
     while True:
         world.step(1000)

@@ -21,7 +21,7 @@ for label, friction in [("prepared with mu = 0.5", 0.5), ("prepared with mu = 0.
     model, state, m0 = prepare(p0=p0, friction=friction)
     s = model.servo
     s.enabled, s.max_rate = True, 10.0
-    s.gain, s.integral_time = sc.derived_gain(0.1, p0, model.materials[0], model.dt), 1000 * model.dt
+    s.gain, s.integral_time = sc.derived_servo("shear", p0, model.materials[0], model.dt)  # the app's
     s.custom = sc.undrained_path(2.0)  # axial 2/s; lateral: eps_v = 0 at every servo update
     world = sc.World(model, state, threads=2, initial_forces=False)
     r = []

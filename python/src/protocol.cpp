@@ -158,6 +158,19 @@ void bind_protocol(py::module_& m) {
         return state;
       },
       py::arg("state"), "The prepared sample, its strains counted from here (a new State)");
+  m.def(
+      "derived_servo",
+      [](const std::string& stage, double p, const Material& material, double servo_time) {
+        if (stage != "prepare" && stage != "shear")
+          throw std::invalid_argument("stage = '" + stage + "': allowed: prepare, shear");
+        const DerivedServo d = derived_servo(stage == "prepare" ? Stage::prepare : Stage::shear, p, material, servo_time);
+        return py::make_tuple(d.gain, d.integral_time);
+      },
+      py::arg("stage"), py::arg("p"), py::arg("material"), py::arg("servo_time"),
+      "(gain 1/s, integral_time s) the app derives for a stage at stress p: alpha (p/E*)^(2/3) / t_s with alpha 0.05 "
+      "(prepare, P law: integral 0) or 0.1 (shear, integral 1000 t_s); docs/physics.md section 6");
+  m.def("servo_time_unit", &servo_time_unit, py::arg("dt"), py::arg("r_min"), py::arg("material"),
+        "The servo's time unit t_s = max(dt, 0.2 Rayleigh time of the smallest sphere), s");
   m.def("derived_gain", &derived_gain, py::arg("alpha"), py::arg("p"), py::arg("material"), py::arg("servo_time"),
         "The app's servo gain, 1/s: alpha (p/E*)^(2/3) / t_s, E* = E / (2 (1 - nu^2)) (docs/physics.md section 6)");
   m.def(

@@ -34,7 +34,7 @@ def loose_sample():
     model = base_model()
     s = model.servo
     s.enabled, s.path, s.control, s.p = True, "isotropic", ["stress"] * 3, P0
-    s.max_rate, s.gain = 5.0, sc.derived_gain(0.05, P0, model.materials[0], model.dt)
+    s.max_rate, s.gain = 5.0, sc.derived_servo("prepare", P0, model.materials[0], model.dt)[0]
     state = sc.State.generate(model, 250, d_min=5e-3, d_max=7.5e-3, solid_fraction=0.3, seed=3)
     world = sc.World(model, state, threads=2)
     for _ in range(200):

@@ -123,13 +123,12 @@ void derive_model(Protocol& plan) {
   m.contact = config.contact;
   if (m.contact.skin == 0.0) m.contact.skin = 0.2 * plan.r_min;  // 0.1 x the smallest diameter
   m.dt = config.dt_fraction * rayleigh_time(plan.r_min, config.material);
-  plan.servo_time = std::max(m.dt, k_servo_time_fraction * rayleigh_time(plan.r_min, config.material));
+  plan.servo_time = servo_time_unit(m.dt, plan.r_min, config.material);
   // The preparation may take its own step: frictionless, it has no tangential or rolling springs,
   // whose stiff rotational modes bound the shearing step at high pressure (docs/reproducing-the-study.md).
   plan.prepare_dt =
       config.prepare.dt_fraction > 0.0 ? config.prepare.dt_fraction * rayleigh_time(plan.r_min, config.material) : m.dt;
-  plan.prepare_servo_time =
-      std::max(plan.prepare_dt, k_servo_time_fraction * rayleigh_time(plan.r_min, config.material));
+  plan.prepare_servo_time = servo_time_unit(plan.prepare_dt, plan.r_min, config.material);
 }
 
 }  // namespace
@@ -170,6 +169,15 @@ double derived_gain(double alpha, double p, const Material& mat, double servo_ti
   return alpha * std::pow(p / e_star, 2.0 / 3.0) / servo_time;
 }
 
+DerivedServo derived_servo(Stage stage, double p, const Material& material, double servo_time) {
+  if (stage == Stage::prepare) return {derived_gain(0.05, p, material, servo_time), 0.0};
+  return {derived_gain(k_shear_alpha, p, material, servo_time), k_integral_units * servo_time};
+}
+
+double servo_time_unit(double dt, double r_min, const Material& material) {
+  return std::max(dt, k_servo_time_fraction * rayleigh_time(r_min, material));
+}
+
 Model prepare_model(const Protocol& plan, double p0) {
   Model m = plan.base;
   m.dt = plan.prepare_dt;
@@ -182,7 +190,8 @@ Model prepare_model(const Protocol& plan, double p0) {
   s.p = p0;
   s.max_rate = plan.config.prepare.max_rate;
   s.gain =
-      plan.config.prepare.gain > 0.0 ? plan.config.prepare.gain : derived_gain(0.05, p0, m.materials[0], plan.prepare_servo_time);
+      plan.config.prepare.gain > 0.0 ? plan.config.prepare.gain
+                                     : derived_servo(Stage::prepare, p0, m.materials[0], plan.prepare_servo_time).gain;
   s.interval = 1;
   return m;
 }
@@ -248,8 +257,9 @@ Model shear_model(const Protocol& plan, const TestSpec& test) {
   // (docs/physics.md section 6). An explicit shear.max_rate is a fixed cap, as set.
   s.max_rate = h.max_rate > 0.0 ? h.max_rate : 10.0 * rate0;
   s.max_rate_ratio = h.max_rate > 0.0 ? 0.0 : 10.0;
-  s.gain = h.gain > 0.0 ? h.gain : derived_gain(k_shear_alpha, test.p0, m.materials[0], plan.servo_time);
-  s.integral_time = h.integral_time > 0.0 ? h.integral_time : k_integral_units * plan.servo_time;
+  const DerivedServo derived = derived_servo(Stage::shear, test.p0, m.materials[0], plan.servo_time);
+  s.gain = h.gain > 0.0 ? h.gain : derived.gain;
+  s.integral_time = h.integral_time > 0.0 ? h.integral_time : derived.integral_time;
   // At a set inertial number the axial rate is 6-80 /s (0.5-16 MPa, I = 3e-3) and T_i = 1000 t_s spans
   // up to 1 % of axial strain: on constant sigma3 the lateral axes lagged through the peak (sigma3 up to
   // 31 % high over 1 % of strain at b = 1, 1,000 spheres). T_i at most the time of 3e-4 axial strain

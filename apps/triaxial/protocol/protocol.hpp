@@ -47,6 +47,21 @@ void validate_servos(const Protocol& protocol);
 /// E* = E / (2 (1 - nu^2)) (docs/physics.md section 6).
 double derived_gain(double alpha, double p, const Material& material, double servo_time);
 
+/// The two stages whose servo the protocol derives.
+enum class Stage { prepare, shear };
+
+/// The servo settings derived for a stage at stress p with time unit t_s (docs/physics.md section 6):
+/// gain = alpha (p/E*)^(2/3) / t_s, alpha 0.05 for the preparation (a P law: integral_time 0) and 0.1
+/// for the shear (integral_time 1000 t_s). The app's stages and Python scripts take them from here.
+struct DerivedServo {
+  double gain;           // 1/s
+  double integral_time;  // s, 0: none
+};
+DerivedServo derived_servo(Stage stage, double p, const Material& material, double servo_time);
+
+/// The servo's time unit t_s = max(dt, 0.2 Rayleigh time of the smallest sphere), s.
+double servo_time_unit(double dt, double r_min, const Material& material);
+
 /// The preparation's model: isotropic stress control to p0 with the preparation's frictions and step.
 Model prepare_model(const Protocol& protocol, double p0);
 
