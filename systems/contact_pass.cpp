@@ -815,13 +815,17 @@ void ContactPass::setup(const Model& model, State& state, Scratch& scratch, Exec
 void ContactPass::prepare(const Model& model, State& state) {
   with_laws(model.contact, [&](auto normal, auto, auto) {
     using N = typename decltype(normal)::type;
-    for (const auto& [key, value] : model.contact.parameters)
-      if (std::find(N::parameters.begin(), N::parameters.end(), key) == N::parameters.end()) {
-        std::string allowed;
-        for (std::string_view k : N::parameters) allowed += (allowed.empty() ? "" : ", ") + std::string(k);
+    for (const auto& [key, value] : model.contact.parameters) {
+      bool known = false;
+      std::string allowed;
+      for (const LawParameter& q : N::parameters) {
+        known = known || q.name == key;
+        allowed += (allowed.empty() ? "" : ", ") + std::string(q.name);
+      }
+      if (!known)
         throw std::invalid_argument("contact.parameters." + key + ": not a parameter of the " + std::string(N::name) +
                                     " law (" + (allowed.empty() ? "it takes none" : "it takes " + allowed) + ")");
-      }
+    }
     N::validate(model.contact);
   });
   // Only the tangential laws with a radius history keep one (mindlin_rescale).
@@ -839,6 +843,15 @@ void ContactPass::prepare(const Model& model, State& state) {
 }
 
 std::string normal_law_names() { return names_of(NormalLaws{}); }
+
+std::vector<NormalLawInfo> normal_laws() {
+  std::vector<NormalLawInfo> out;
+  const auto add = [&]<class L>(std::type_identity<L>) {
+    out.push_back({std::string(L::name), std::vector<LawParameter>(L::parameters.begin(), L::parameters.end())});
+  };
+  [&]<class... L>(LawList<L...>) { (add(std::type_identity<L>{}), ...); }(NormalLaws{});
+  return out;
+}
 
 namespace {
 template <class... L>

@@ -19,6 +19,7 @@
 // contact opens). The pass is instantiated per (laws, affine term), so the hot loop has no
 // run-time switches.
 #include "engine/system.hpp"
+#include "systems/laws/law.hpp"
 
 #include <optional>
 #include <string>
@@ -70,6 +71,13 @@ double contact_elastic_energy(const Model& model, const State& state);
 
 /// The registered normal laws' names, comma-separated (for messages).
 std::string normal_law_names();
+
+/// The registered normal laws with their parameters (name, units, range: systems/laws/law.hpp).
+struct NormalLawInfo {
+  std::string name;
+  std::vector<LawParameter> parameters;
+};
+std::vector<NormalLawInfo> normal_laws();
 
 // The tangential and rolling laws by name (systems/laws/mindlin.hpp TangentialLaws, rolling.hpp
 // k_rolling_laws): what the apps' configs, dem-bench and Python accept.

@@ -316,6 +316,7 @@ struct Options {
   double deform = 0.0, vchar = 0.0;
   bool json = false, serial = false, costs = false, scaling = false, probe = false, compat = false;
   std::string partition = "adaptive", rolling = "epsd2", tangential = "history", normal;
+  std::vector<std::string> params;  // --param NAME=VALUE: a normal law's parameter (the law registry's)
 };
 
 // A number in [lo, hi].
@@ -382,9 +383,36 @@ std::optional<int> parse_command_line(int argc, char** argv, Options& o, Model& 
   // The normal law by its registered name (hertz, hooke); hooke takes --vchar. The engine checks
   // both when the world is built and refuses an unknown name, listing the registered ones.
   app.add_option("--normal", o.normal, "normal contact law by its registered name (default hertz)")->type_name("LAW");
-  app.add_option("--vchar", o.vchar, "hooke's characteristic velocity, m/s")
+  app.add_option("--vchar", o.vchar, "hooke's characteristic velocity, m/s (as --param characteristic_velocity=V)")
       ->type_name("V")
       ->check(number_in(1e-9, 1e6));
+  // A normal law's parameter by its registered name, range checked from the registry.
+  std::string param_names;
+  for (const NormalLawInfo& law : normal_laws())
+    for (const LawParameter& q : law.parameters) param_names += (param_names.empty() ? "" : ", ") + std::string(q.name);
+  app.add_option("--param", o.params, "a normal law's parameter NAME=VALUE (" + param_names + "), repeatable")
+      ->type_name("NAME=VALUE")
+      ->check(CLI::Validator(
+          [](std::string& text) -> std::string {
+            const std::size_t eq = text.find('=');
+            const std::string name = text.substr(0, eq);
+            for (const NormalLawInfo& law : normal_laws())
+              for (const LawParameter& q : law.parameters)
+                if (q.name == name) {
+                  char* end = nullptr;
+                  const std::string value = eq == std::string::npos ? "" : text.substr(eq + 1);
+                  const double v = std::strtod(value.c_str(), &end);
+                  if (value.empty() || *end != '\0' || !(v >= q.lo && v <= q.hi))
+                  {
+                    char range[96];
+                    std::snprintf(range, sizeof range, "[%g, %g]", q.lo, q.hi);
+                    return text + ": allowed: " + name + " in " + range + " " + std::string(q.units);
+                  }
+                  return "";
+                }
+            return text + ": not a parameter of a registered normal law";
+          },
+          "NAME=VALUE"));
   try {
     app.parse(argc, argv);
   } catch (const CLI::CallForHelp&) {
@@ -401,6 +429,8 @@ std::optional<int> parse_command_line(int argc, char** argv, Options& o, Model& 
   if (app.count("--tangential") > 0) model.contact.tangential = tangential_law(o.tangential).value();
   if (app.count("--normal") > 0) model.contact.normal = o.normal;
   if (app.count("--vchar") > 0) model.contact.parameters["characteristic_velocity"] = o.vchar;
+  for (const std::string& p : o.params)
+    model.contact.parameters[p.substr(0, p.find('='))] = std::strtod(p.substr(p.find('=') + 1).c_str(), nullptr);
   return std::nullopt;
 }
 

@@ -6,7 +6,7 @@ config and code), its series row (append_row, series_columns) and its accuracy a
 so a script reproduces the app's runs without retyping its rules.
 """
 from ._sandcell import (  # noqa: F401
-    AccuracyWatch, ConfigError, ContactSettings, CyclicPath, CyclicSettings, Material, Measures, Model,
+    AccuracyWatch, ConfigError, ContactSettings, contact_laws, CyclicPath, CyclicSettings, Material, Measures, Model,
     PathFunction, PathInput, PathTargets, PathTolerance, PathWatch, Protocol, ResultsFile, ServoSettings,
     SimulationError, State, StressInvariants, TestSpec, World, __version__, append_row, derived_gain, derived_servo,
     finish_preparation, median_diameter, p0_tag, principal_rotation_deg, rayleigh_time, read_checkpoint,

@@ -857,4 +857,22 @@ PYBIND11_MODULE(_sandcell, m) {
       [](ResultsFile& r, const State& st, const Measures& mm, double wall) { triaxial::append_row(r, st, mm, wall); },
       py::arg("results"), py::arg("state"), py::arg("measures"), py::arg("wall") = 0.0);
   bind_protocol(m);
+  m.def(
+      "contact_laws",
+      [] {
+        py::dict d;
+        py::list normal;
+        for (const NormalLawInfo& law : normal_laws()) {
+          py::list params;
+          for (const LawParameter& q : law.parameters)
+            params.append(py::dict(py::arg("name") = std::string(q.name), py::arg("units") = std::string(q.units),
+                                   py::arg("range") = py::make_tuple(q.lo, q.hi), py::arg("what") = std::string(q.what)));
+          normal.append(py::dict(py::arg("name") = law.name, py::arg("parameters") = params));
+        }
+        d["normal"] = normal;
+        d["tangential"] = tangential_law_names();
+        d["rolling"] = rolling_law_names();
+        return d;
+      },
+      "The registered contact laws of the three slots (systems/laws/): names, and the normal laws' parameters");
 }

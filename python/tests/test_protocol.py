@@ -151,3 +151,23 @@ def test_a_cyclic_test_from_toml_resumes_bitwise(tmp_path):
         for k in a["series"]:
             if k != "wall_time":
                 assert np.array_equal(a["series"][k][()], b["series"][k][()]), k
+
+
+def test_the_contact_law_registry_is_what_the_module_accepts():
+    """Every slot's names from the law registries (systems/laws/); each is accepted by ContactSettings,
+    and a name not registered is a ValueError listing them."""
+    laws = sc.contact_laws()
+    assert [n["name"] for n in laws["normal"]] == ["hertz", "hooke"]
+    assert laws["tangential"] == ["history", "incremental", "mindlin_rescale"]
+    assert laws["rolling"] == ["none", "epsd2", "epsd", "cdt"]
+    hooke = laws["normal"][1]["parameters"][0]
+    assert hooke["name"] == "characteristic_velocity" and hooke["units"] == "m/s"
+    c = sc.ContactSettings()
+    for name in laws["tangential"]:
+        c.tangential = name
+        assert c.tangential == name
+    for name in laws["rolling"]:
+        c.rolling = name
+        assert c.rolling == name
+    with pytest.raises(ValueError, match="mindlin_rescale"):
+        c.tangential = "mindlin"

@@ -13,7 +13,7 @@ namespace sandcell {
 
 struct Hertz {
   static constexpr std::string_view name = "hertz";
-  static constexpr std::array<std::string_view, 0> parameters{};
+  static constexpr std::array<LawParameter, 0> parameters{};
   static constexpr double k_two_sqrt_5_6 = 1.8257418583505538;  // 2 sqrt(5/6)
 
   static void validate(const ContactSettings&) {}

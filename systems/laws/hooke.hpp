@@ -20,7 +20,8 @@ namespace sandcell {
 
 struct Hooke {
   static constexpr std::string_view name = "hooke";
-  static constexpr std::array<std::string_view, 1> parameters{"characteristic_velocity"};
+  static constexpr std::array<LawParameter, 1> parameters{
+      {{"characteristic_velocity", "m/s", 1e-9, 1e6, "LIGGGHTS characteristicVelocity"}}};
 
   static void validate(const ContactSettings& contact) {
     const auto it = contact.parameters.find("characteristic_velocity");

@@ -4,8 +4,9 @@
 //
 // Normal law (systems/laws/hertz.hpp, hooke.hpp; registered in normal_laws.hpp), a type with
 //   static constexpr std::string_view name;                    its key in ContactSettings::normal
-//   static constexpr std::array<std::string_view, N> parameters; the keys it reads from
-//                                                               ContactSettings::parameters
+//   static constexpr std::array<LawParameter, N> parameters;    the keys it reads from
+//                                                               ContactSettings::parameters, with
+//                                                               units and ranges (the apps read them)
 //   static void validate(const ContactSettings&);               their values (throws invalid_argument)
 //   static Stiffness stiffness(const LawPair&, double r_star, double m_star, double od);
 //       k_n, k_t and gamma_n of a pair at overlap od >= 0 (branch-free: the pass calls it for a
@@ -24,6 +25,8 @@
 // for_each_contact_history), which the broadphase carries from list to list without naming it.
 #include "engine/model.hpp"
 #include "components/types.hpp"
+
+#include <string_view>
 
 namespace sandcell {
 
@@ -46,6 +49,15 @@ struct AtRest {
   double k_n;     // N/m
   double k_t;     // N/m
   double energy;  // J, stored elastic energy of the normal spring
+};
+
+/// A named parameter of a law (ContactSettings::parameters[name]): its units, range and meaning,
+/// which the apps' configs, dem-bench and Python read from the registry.
+struct LawParameter {
+  std::string_view name;
+  std::string_view units;
+  double lo, hi;  // the allowed range, inclusive
+  std::string_view what;
 };
 
 /// The registered laws of one kind, in the order of their registration.

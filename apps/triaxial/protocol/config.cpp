@@ -302,14 +302,22 @@ void parse_contact(const toml::table& root, const std::string& source, ContactSe
     }
     if (!known) s.fail("normal", "\"" + k.normal + "\"", allowed);
   }
-  double v_char = 0.0;
-  s.number("characteristic_velocity", v_char, 1e-9, 1e6, "must be in (0, 1e6] m/s");
-  if (k.normal == "hooke" && v_char == 0.0)
-    s.fail("characteristic_velocity", "(none)",
-           "required with normal = \"hooke\" (m/s, LIGGGHTS characteristicVelocity)");
-  if (k.normal != "hooke" && v_char != 0.0)
-    s.fail("characteristic_velocity", num(v_char), "only with normal = \"hooke\"");
-  if (v_char > 0.0) k.parameters["characteristic_velocity"] = v_char;
+  // The normal laws' parameters, each a [contact] key, from the registry (systems/laws/law.hpp): the
+  // chosen law's are required, another law's refused.
+  for (const NormalLawInfo& law : normal_laws())
+    for (const LawParameter& q : law.parameters) {
+      const std::string key(q.name);
+      double value = std::nan("");
+      s.number(key, value, q.lo, q.hi,
+               "must be in [" + num(q.lo) + ", " + num(q.hi) + "] " + std::string(q.units) + " (" +
+                   std::string(q.what) + ")");
+      const bool given = !std::isnan(value);
+      if (law.name == k.normal && !given)
+        s.fail(key, "(none)", "required with normal = \"" + law.name + "\" (" + std::string(q.units) + ", " +
+                                  std::string(q.what) + ")");
+      if (law.name != k.normal && given) s.fail(key, num(value), "only with normal = \"" + law.name + "\"");
+      if (given) k.parameters[key] = value;
+    }
   // The laws by their registered names (systems/laws/: TangentialLaws, k_rolling_laws).
   s.registered("tangential", k.tangential, tangential_law_names(), [](const std::string& n) { return tangential_law(n); });
   s.registered("rolling", k.rolling, rolling_law_names(), [](const std::string& n) { return rolling_law(n); });
