@@ -22,6 +22,7 @@ struct TwoSphere {
   double dt = 1e-7;          // s
   double gap = 0.0;          // m, surface gap at start
   std::string normal = "hooke";
+  TangentialModel tangential = TangentialModel::history;
 };
 
 inline Model two_sphere_model(const TwoSphere& s) {
@@ -38,6 +39,7 @@ inline Model two_sphere_model(const TwoSphere& s) {
   model.contact.normal = s.normal;
   if (s.normal == "hooke") model.contact.parameters["characteristic_velocity"] = s.v_char;
   model.contact.rolling = RollingModel::none;
+  model.contact.tangential = s.tangential;
   model.contact.skin = 0.2 * s.radius;
   return model;
 }

@@ -3,9 +3,11 @@
 // the contract):
 //   two-sphere --radius R --density RHO --young E --poisson NU --restitution E --friction MU
 //              --vn VN --vt VT --vchar VC --dt DT --steps N --gap GAP [--normal hertz|hooke]
+//              [--tangential history|incremental|mindlin_rescale] [--rotation 0]
 #include "engine/world.hpp"
 #include "support/two_sphere.hpp"
 #include "systems/catalogue.hpp"
+#include "systems/contact_pass.hpp"
 
 #include <cstdio>
 #include <cstdlib>
@@ -49,12 +51,25 @@ int main(int argc, char** argv) {
       s.normal = it->second;
       args.erase(it);
     }
+    if (const auto it = args.find("--tangential"); it != args.end()) {  // a registered name (contact_pass.hpp)
+      const auto law = tangential_law(it->second);
+      if (!law) throw std::invalid_argument("--tangential " + it->second + ": not a registered tangential law");
+      s.tangential = *law;
+      args.erase(it);
+    }
+    // --rotation 0: the spheres never turn (inverse inertia 0), as LAMMPS `fix nve` (no nve/sphere): the
+    // tangential law compared alone, without the codes' levers (LAMMPS: R in the slip velocity).
+    double rotation = 1.0;
+    number("--rotation", rotation);
     if (!args.empty()) {
       std::fprintf(stderr, "two-sphere: unknown option %s\n", args.begin()->first.c_str());
       return 2;
     }
     const Model model = test::two_sphere_model(s);
-    World world(model, test::two_sphere_state(model, s), systems_for(model), ExecutorConfig{Backend::serial, 1});
+    State initial = test::two_sphere_state(model, s);
+    if (rotation == 0.0)
+      for (double& inv : initial.particles.inv_inertia) inv = 0.0;
+    World world(model, std::move(initial), systems_for(model), ExecutorConfig{Backend::serial, 1});
     const double c = test::two_sphere_centre(s);
     std::printf("t,x1,x2,z1,z2,v1x,v2x,v1z,v2z,w1y,w2y,f1x,f1z\n");
     for (long k = 1; k <= steps; ++k) {
