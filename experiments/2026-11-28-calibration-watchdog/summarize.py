@@ -77,6 +77,25 @@ def main(out):
     for s in summary:
         print(f"| {s['calibration']} | {s['tests']} | {s['failed']} ({s['failed_on_rotation']}) | "
               f"{s['rotation_median']} / {s['rotation_max']} | {s['runs_measuring_a_target']} | {s['fitted']} |")
+    aggregates(tests)
+
+
+def aggregates(tests):
+    """The figures the README quotes: failures by cause, the turn of the tests that held, failures by b."""
+    failed = [t for t in tests if t["status"] == "failed"]
+    other = [t for t in failed if "rotation" not in t["reason"]]
+    held = sorted(float(t["rotation_deg"]) for t in tests if t["status"].startswith("done"))
+    print(f"\nfailed {len(failed)} of {len(tests)}; not on rotation {len(other)}: "
+          + "; ".join(f"{t['calibration']} {t['run']} {t['test']}: {t['reason']}" for t in other))
+    if held:
+        q = lambda f: held[min(len(held) - 1, int(f * len(held)))]  # noqa: E731
+        print(f"held their path: {len(held)}, worst-window turn median {q(0.5):.2f}, p10 {q(0.1):.2f}, "
+              f"p90 {q(0.9):.2f} deg")
+    for b in ("b0.00", "b1.00"):
+        for name in NAMES:
+            sel = [t for t in tests if t["calibration"] == name and f"-{b}-" in t["test"]]
+            if sel:
+                print(f"{name} {b}: {sum(t['status'] == 'failed' for t in sel)} of {len(sel)} failed")
 
 
 if __name__ == "__main__":
