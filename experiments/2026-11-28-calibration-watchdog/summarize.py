@@ -4,7 +4,7 @@ per calibration, how many of its tests held their path, why the others failed, h
 each target, and whether the calibration could fit. Writes results/summary.csv, results/tests.csv and
 each calibration's runs.csv (results/<name>-runs.csv); prints the table of the README.
 
-    /usr/bin/python3 experiments/2026-11-28-calibration-watchdog/summarize.py OUT_DIR
+    /usr/bin/python3 experiments/2026-11-28-calibration-watchdog/summarize.py results/calibration-watchdog/out
 """
 import csv
 import math
@@ -30,7 +30,7 @@ def main(out):
         folder = os.path.join(out, name)
         if not os.path.isdir(os.path.join(folder, "runs")):
             continue
-        log = os.path.join(os.path.dirname(out), f"log-{name}.txt")
+        log = os.path.join(os.path.dirname(os.path.abspath(out)), f"log-{name}.txt")
         text = open(log).read() if os.path.exists(log) else ""
         n_tests = n_failed = n_rotation = 0
         rotations = []
@@ -99,4 +99,4 @@ def aggregates(tests):
 
 
 if __name__ == "__main__":
-    sys.exit(main(sys.argv[1] if len(sys.argv) > 1 else "/work/campaigns/recal/out"))
+    sys.exit(main(sys.argv[1] if len(sys.argv) > 1 else "results/calibration-watchdog/out"))
