@@ -91,6 +91,7 @@ def test_bad_input_is_a_value_error_naming_the_argument(call, key):
 def test_servo_settings_are_checked_when_the_world_is_built():
     model = base_model()
     model.servo.enabled = True
+    model.servo.control = ["strain", "stress", "stress"]  # a path with no stress-controlled axis needs no gain
     model.servo.gain = 0.0
     state = sc.State.generate(model, 50, d_min=5e-3, d_max=7.5e-3)
     with pytest.raises(ValueError, match="servo.gain"):
