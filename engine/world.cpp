@@ -93,17 +93,7 @@ World::World(Model model, State state, std::vector<SystemSpec> systems, Executor
   for (std::size_t k = 0; k < graph_.size(); ++k)
     if (graph_.system(k).prepare) graph_.system(k).prepare(model_, state_);
   if (!initial_forces) {
-    // The state holds its list and the forces of its last step (a checkpoint, or the previous
-    // stage of a test): the systems rebuild only their scratch from it (e.g. the gather index from
-    // the pair list). Nothing else is recomputed, so continuing from here is bitwise the same as
-    // never stopping.
-    for (std::size_t k = 0; k < graph_.size(); ++k) {
-      const SystemSpec& s = graph_.system(k);
-      if (!s.restore) continue;
-      const AccessSets sets{s.name, s.reads, s.writes};
-      AccessScope scope(sets);
-      s.restore(model_, state_, scratch_);
-    }
+    restore();
     return;
   }
   // Forces of the initial configuration (LAMMPS `setup`): the systems' setup hooks in reference
@@ -111,14 +101,36 @@ World::World(Model model, State state, std::vector<SystemSpec> systems, Executor
   for (std::size_t k = 0; k < graph_.size(); ++k) {
     const SystemSpec& s = graph_.system(k);
     if (!s.setup) continue;
-    run_hook(s, s.setup, model_, state_, scratch_, exec_);
+    run_hook(s, s.setup, model_, state_, *scratch_, exec_);
     check_health();
   }
 }
 
+void World::restore() {
+  // The state holds its list and the forces of its last step (a checkpoint, or the previous
+  // stage of a test): the systems rebuild only their scratch from it (e.g. the gather index from
+  // the pair list). Nothing else is recomputed, so continuing from here is bitwise the same as
+  // never stopping.
+  for (std::size_t k = 0; k < graph_.size(); ++k) {
+    const SystemSpec& s = graph_.system(k);
+    if (!s.restore) continue;
+    const AccessSets sets{s.name, s.reads, s.writes};
+    AccessScope scope(sets);
+    s.restore(model_, state_, *scratch_);
+  }
+}
+
+void World::reset(const State& state) {
+  // Copy assignment reuses a vector's buffer when its capacity suffices (the particle arrays: the
+  // same sizes), so views into them stay valid; the Python module relies on it and tests it.
+  state_ = state;
+  scratch_ = std::make_unique<Scratch>();
+  restore();
+}
+
 void World::check_health() const {
-  if (!scratch_.error.empty())
-    throw SimulationError("step " + std::to_string(state_.clock.step) + ": " + scratch_.error);
+  if (!scratch_->error.empty())
+    throw SimulationError("step " + std::to_string(state_.clock.step) + ": " + scratch_->error);
 }
 
 void World::step(std::uint64_t n) {
@@ -128,10 +140,10 @@ void World::step(std::uint64_t n) {
 std::uint64_t World::step_until(std::uint64_t n, FunctionRef<bool(Cell&, const Clock&)> stop) {
   std::uint64_t done = 0;
   try {
-    scratch_.batching = batching_;
+    scratch_->batching = batching_;
     while (done < n) {
       exec_.begin_step();
-      graph_.run(model_, state_, scratch_);
+      graph_.run(model_, state_, *scratch_);
       exec_.end_step();
       ++state_.clock.step;
       state_.clock.time += model_.dt;
@@ -148,9 +160,9 @@ std::uint64_t World::step_until(std::uint64_t n, FunctionRef<bool(Cell&, const C
 }
 
 void World::flush() {
-  scratch_.batching = false;
+  scratch_->batching = false;
   for (std::size_t k = 0; k < graph_.size(); ++k)
-    if (graph_.system(k).flush) graph_.run_hook(k, graph_.system(k).flush, model_, state_, scratch_);
+    if (graph_.system(k).flush) graph_.run_hook(k, graph_.system(k).flush, model_, state_, *scratch_);
 }
 
 bool World::can_batch(const StepGraph& graph) {

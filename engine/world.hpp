@@ -7,6 +7,7 @@
 #include "engine/step_graph.hpp"
 
 #include <cstdint>
+#include <memory>
 #include <stdexcept>
 #include <vector>
 
@@ -43,11 +44,17 @@ class World {
   /// on the particles. Before returning, World calls the `flush` of such systems, so the state seen
   /// after the call is bitwise that of one step per call; the fewer calls, the fewer passes.
   std::uint64_t step_until(std::uint64_t n, FunctionRef<bool(Cell&, const Clock&)> stop);
+  /// Puts the scene back at `state`, a copy of this World's state taken between calls (or a
+  /// checkpoint of it), e.g. after an exception that interrupted a step: arrays of the same size
+  /// are assigned in place (their data stay where they are), and the scratch is rebuilt from it
+  /// as World(model, state, systems, exec, false) builds it, so continuing is bitwise as
+  /// continuing from that state.
+  void reset(const State& state);
 
   const Model& model() const { return model_; }
   State& state() { return state_; }
   const State& state() const { return state_; }
-  const Scratch& scratch() const { return scratch_; }
+  const Scratch& scratch() const { return *scratch_; }
   Executor& executor() { return exec_; }
   const StepGraph& graph() const { return graph_; }
   /// Whether step(n) lets systems leave work to the next step (each final half kick but the
@@ -59,11 +66,12 @@ class World {
  private:
   void check_health() const;
   void flush();
+  void restore();
   static bool can_batch(const StepGraph& graph);
 
   Model model_;
   State state_;
-  Scratch scratch_;
+  std::unique_ptr<Scratch> scratch_ = std::make_unique<Scratch>();  // replaced by reset()
   Executor exec_;
   StepGraph graph_;
   bool batching_ = false;  // every deferring system runs last and the one it defers to first (can_batch)

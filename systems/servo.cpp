@@ -15,9 +15,15 @@ void validate(const ServoSettings& servo) {
   const auto fail = [](const std::string& key, double value, const std::string& allowed) {
     throw std::invalid_argument("servo." + key + " = " + std::to_string(value) + ": " + allowed);
   };
-  if (!(servo.gain > 0.0) || !std::isfinite(servo.gain)) fail("gain", servo.gain, "must be a finite value > 0 1/s");
-  if (!(servo.max_rate > 0.0) || !std::isfinite(servo.max_rate))
-    fail("max_rate", servo.max_rate, "must be a finite value > 0 1/s");
+  // The gain and the rate cap drive the stress-controlled axes only: a path that controls none
+  // (every axis by strain) needs neither; a custom path may answer `stress` at any update.
+  const bool any_stress = servo.control[0] == AxisControl::stress || servo.control[1] == AxisControl::stress ||
+                          servo.control[2] == AxisControl::stress;
+  if (any_stress || servo.path == StressPath::custom) {
+    if (!(servo.gain > 0.0) || !std::isfinite(servo.gain)) fail("gain", servo.gain, "must be a finite value > 0 1/s");
+    if (!(servo.max_rate > 0.0) || !std::isfinite(servo.max_rate))
+      fail("max_rate", servo.max_rate, "must be a finite value > 0 1/s");
+  }
   if (!(servo.max_rate_ratio >= 0.0) || !std::isfinite(servo.max_rate_ratio))
     fail("max_rate_ratio", servo.max_rate_ratio, "must be a finite value >= 0 (0: max_rate alone)");
   if (!(servo.integral_strain >= 0.0) || !std::isfinite(servo.integral_strain))
@@ -50,8 +56,6 @@ void validate(const ServoSettings& servo) {
       throw std::invalid_argument(
           "servo.control[" + std::to_string(k) +
           "] = volume: only a custom path's answer may hold the volume; allowed here: strain, stress");
-  const bool any_stress = servo.control[0] == AxisControl::stress || servo.control[1] == AxisControl::stress ||
-                          servo.control[2] == AxisControl::stress;
   if (!any_stress) return;
   switch (spec.scale) {
     case PathScale::p:

@@ -1,9 +1,9 @@
 // The Python front end (docs/python.md): module sandcell._sandcell, wrapped by the package sandcell.
-// Settings are plain classes with attribute access; the World owns its state, and its arrays are
-// seen from Python as read-only NumPy views without copies, valid until the next call that may
-// resize or reorder them (World.step, World.step_until). Bad input raises ValueError naming the
-// argument (the engine's std::invalid_argument is translated to ValueError by pybind11).
-#include <sandcell/sandcell.hpp>
+// Settings are plain classes with attribute access, checked as they are set; the World and its
+// lifetime rules (views, reentrancy, rollback) are in world.cpp. Bad input raises ValueError naming
+// the argument, its value and what is allowed (the engine's std::invalid_argument is translated to
+// ValueError by pybind11).
+#include "common.hpp"
 
 #include "protocol/series.hpp"
 #include "systems/contact_pass.hpp"
@@ -18,6 +18,7 @@
 #include <pybind11/stl.h>
 
 #include <cmath>
+#include <cstdio>
 #include <limits>
 #include <memory>
 #include <optional>
@@ -28,6 +29,7 @@
 
 namespace py = pybind11;
 using namespace sandcell;
+using namespace sandcell::python;
 
 namespace {
 
@@ -81,76 +83,7 @@ std::vector<std::string> control_names(const std::array<AxisControl, 3>& c) {
   return {k_controls.name(c[0]), k_controls.name(c[1]), k_controls.name(c[2])};
 }
 
-// A 3-vector from any sequence of 3 numbers, or ValueError naming the argument.
-Vec3 vec3(const std::string& key, const py::handle& value) {
-  py::array_t<double, py::array::forcecast> a;
-  try {
-    a = py::array_t<double, py::array::forcecast>::ensure(value);
-  } catch (const py::error_already_set&) {
-  }
-  if (!a || a.ndim() != 1 || a.shape(0) != 3)
-    throw std::invalid_argument(key + ": must be a sequence of 3 numbers (shape (3,))" +
-                                (a ? ", got shape with " + std::to_string(a.ndim()) + " dimensions" : std::string()));
-  return Vec3(a.at(0), a.at(1), a.at(2));
-}
-
-double positive(const std::string& key, double v, const char* unit) {
-  if (!(v > 0.0) || !std::isfinite(v))
-    throw std::invalid_argument(key + " = " + std::to_string(v) + ": must be a finite value > 0 " + unit);
-  return v;
-}
-
-// ---- Python stress paths --------------------------------------------------------------------------
-
-// A Python error raised inside a path called from the step loop, kept until the step returns to
-// Python (the step may run the servo on another thread; the error crosses TBB as PathError).
-struct ErrorSlot {
-  std::optional<py::error_already_set> error;
-};
-struct PathError : std::runtime_error {
-  using std::runtime_error::runtime_error;
-};
-
-PathTargets targets_from_python(const py::handle& result) {
-  if (py::isinstance<PathTargets>(result)) return result.cast<PathTargets>();
-  if (py::isinstance<py::tuple>(result) && py::len(result) == 2) {
-    const py::tuple t = result.cast<py::tuple>();
-    PathTargets out;
-    if (py::isinstance<py::str>(t[0]) || !py::isinstance<py::sequence>(t[0]))
-      throw std::invalid_argument("path result control: must be a sequence of 3 of strain, stress, volume");
-    std::vector<std::string> names;
-    for (const py::handle h : t[0].cast<py::sequence>()) {
-      if (!py::isinstance<py::str>(h))
-        throw std::invalid_argument("path result control: must be a sequence of 3 of strain, stress, volume");
-      names.push_back(h.cast<std::string>());
-    }
-    out.control = parse_controls("path result control", names);
-    out.value = vec3("path result value", t[1]);
-    return out;
-  }
-  throw std::invalid_argument("path result: " + std::string(py::str(py::type::of(result))) +
-                              ": must be a sandcell.PathTargets or a tuple (control[3], value[3])");
-}
-
-// The C++ side of a Python callable path. Holds the GIL while it runs.
-struct PythonPath {
-  py::object fn;
-  std::shared_ptr<ErrorSlot> slot;
-  PathTargets operator()(const PathInput& in) const {
-    py::gil_scoped_acquire gil;
-    try {
-      return targets_from_python(fn(in));
-    } catch (py::error_already_set& e) {
-      std::string what = e.what();
-      slot->error = std::move(e);
-      throw PathError("stress path raised: " + what);
-    } catch (const std::invalid_argument& e) {
-      slot->error = std::nullopt;
-      throw;
-    }
-  }
-};
-
+// A path function given as servo.custom: a CyclicPath, a C++ PathFunction or a Python callable.
 PathFunction path_function(const py::object& value) {
   if (value.is_none()) return {};
   if (py::isinstance<CyclicPath>(value)) return value.cast<CyclicPath>();
@@ -158,132 +91,7 @@ PathFunction path_function(const py::object& value) {
   if (!PyCallable_Check(value.ptr()))
     throw std::invalid_argument("servo.custom: " + std::string(py::str(py::type::of(value))) +
                                 ": must be callable (PathInput -> PathTargets), a CyclicPath or undrained_path(rate)");
-  return PythonPath{value, std::make_shared<ErrorSlot>()};
-}
-
-// ---- the World and its views --------------------------------------------------------------------
-
-struct PyWorld {
-  std::unique_ptr<World> world;
-  std::shared_ptr<ErrorSlot> slot;  // the Python path's, when the servo runs one
-  py::object path;                  // the Python object given as servo.custom (kept alive)
-
-  // Runs fn with the GIL released, then turns a Python path's error back into that Python error.
-  template <class Fn>
-  auto guarded(Fn&& fn) {
-    try {
-      py::gil_scoped_release release;
-      return fn();
-    } catch (const PathError&) {
-      if (slot && slot->error) {
-        py::error_already_set e = std::move(*slot->error);
-        slot->error.reset();
-        throw e;
-      }
-      throw;
-    }
-  }
-};
-
-template <class T>
-py::array view(const py::object& owner, const std::vector<T>& v, bool /*vec3*/) {
-  py::array a;
-  if constexpr (std::is_same_v<T, Vec3>) {
-    const auto* data = reinterpret_cast<const double*>(v.data());
-    a = py::array(py::dtype::of<double>(), {static_cast<py::ssize_t>(v.size()), py::ssize_t{3}},
-                  {static_cast<py::ssize_t>(sizeof(T)), static_cast<py::ssize_t>(sizeof(double))}, data, owner);
-  } else {
-    a = py::array(py::dtype::of<T>(), {static_cast<py::ssize_t>(v.size())}, {static_cast<py::ssize_t>(sizeof(T))},
-                  v.data(), owner);
-  }
-  a.attr("setflags")(py::arg("write") = false);
-  return a;
-}
-
-py::array image_view(const py::object& owner, const std::vector<Image>& v) {
-  py::array a(py::dtype::of<std::int8_t>(), {static_cast<py::ssize_t>(v.size()), py::ssize_t{3}},
-              {static_cast<py::ssize_t>(sizeof(Image)), py::ssize_t{1}}, reinterpret_cast<const std::int8_t*>(v.data()),
-              owner);
-  a.attr("setflags")(py::arg("write") = false);
-  return a;
-}
-
-py::array vec_view(const py::object& owner, const Vec3& v) {
-  py::array a(py::dtype::of<double>(), {py::ssize_t{3}}, {py::ssize_t{sizeof(double)}}, v.data(), owner);
-  a.attr("setflags")(py::arg("write") = false);
-  return a;
-}
-
-// The particle arrays of a State, by name (components/particles.hpp).
-py::dict particle_views(const py::object& owner, const State& s) {
-  const Particles& p = s.particles;
-  py::dict d;
-  d["id"] = view(owner, p.id, false);
-  d["position"] = view(owner, p.position, true);
-  d["velocity"] = view(owner, p.velocity, true);
-  d["angular_velocity"] = view(owner, p.angular_velocity, true);
-  d["force"] = view(owner, p.force, true);
-  d["torque"] = view(owner, p.torque, true);
-  d["radius"] = view(owner, p.radius, false);
-  d["mass"] = view(owner, p.mass, false);
-  d["inv_inertia"] = view(owner, p.inv_inertia, false);
-  d["material"] = view(owner, p.material, false);
-  d["reference_position"] = view(owner, p.reference_position, true);
-  return d;
-}
-
-py::dict contact_views(const py::object& owner, const State& s) {
-  const Contacts& c = s.contacts;
-  py::dict d;
-  d["id_i"] = view(owner, c.pairs.id_i, false);
-  d["id_j"] = view(owner, c.pairs.id_j, false);
-  d["i"] = view(owner, c.pairs.i, false);
-  d["j"] = view(owner, c.pairs.j, false);
-  d["image"] = image_view(owner, c.pairs.image);
-  d["force"] = view(owner, c.forces.force, true);
-  d["torque_i"] = view(owner, c.forces.torque_i, true);
-  d["torque_j"] = view(owner, c.forces.torque_j, true);
-  d["tangential"] = view(owner, c.tangential, true);
-  if (c.has_tangential_radius) d["tangential_radius"] = view(owner, c.tangential_radius, false);
-  if (c.has_rolling) d["rolling"] = view(owner, c.rolling, true);
-  return d;
-}
-
-py::dict cell_views(const py::object& owner, const State& s) {
-  py::dict d;
-  d["length"] = vec_view(owner, s.cell.length);
-  d["length0"] = vec_view(owner, s.cell.length0);
-  d["rate"] = vec_view(owner, s.cell.rate);
-  d["servo_integral"] = vec_view(owner, s.cell.servo_integral);
-  return d;
-}
-
-py::dict extra_to_dict(const CheckpointExtra& x) {
-  py::dict d;
-  d["doubles"] = x.doubles;
-  d["integers"] = x.integers;
-  d["strings"] = x.strings;
-  return d;
-}
-
-CheckpointExtra extra_from_dict(const py::object& o) {
-  CheckpointExtra x;
-  if (o.is_none()) return x;
-  if (!py::isinstance<py::dict>(o))
-    throw std::invalid_argument("extra: must be a dict with keys doubles, integers, strings");
-  const py::dict d = o.cast<py::dict>();
-  for (const auto& [key, value] : d) {
-    const std::string k = key.cast<std::string>();
-    if (k == "doubles")
-      x.doubles = value.cast<std::map<std::string, std::vector<double>>>();
-    else if (k == "integers")
-      x.integers = value.cast<std::map<std::string, std::vector<std::int64_t>>>();
-    else if (k == "strings")
-      x.strings = value.cast<std::map<std::string, std::string>>();
-    else
-      throw std::invalid_argument("extra['" + k + "']: unknown key; allowed: doubles, integers, strings");
-  }
-  return x;
+  return PythonPath{value};
 }
 
 State state_from_arrays(const Model& model, const py::object& box, const py::object& position, const py::object& radius,
@@ -319,15 +127,154 @@ State state_from_arrays(const Model& model, const py::object& box, const py::obj
   return make_state(model, pk, material);
 }
 
-Measures measure_world(World& w, bool kinetic_stress, double d50, double density) {
-  MeasureOptions o;
-  o.kinetic_stress = kinetic_stress;
-  o.d50 = d50;
-  o.density = density;
-  return measure(w.model(), w.state(), w.executor(), o);
+// A 3-vector of finite numbers.
+Vec3 finite3(const std::string& key, const py::handle& value, const char* unit) {
+  const Vec3 v = vec3(key, value);
+  for (int k = 0; k < 3; ++k) finite(key + "[" + std::to_string(k) + "]", v[k], unit);
+  return v;
+}
+
+// A material's properties, each checked as it is set (the constructor and the attributes alike).
+void check_density(double v) { positive("density", v, "kg/m^3"); }
+void check_young(double v) { positive("young", v, "Pa"); }
+void check_poisson(double v) {
+  if (!(v > -1.0 && v < 0.5)) throw std::invalid_argument("poisson = " + number(v) + ": must be in (-1, 0.5)");
+}
+void check_restitution(double v) {
+  if (!(v > 0.0 && v <= 1.0)) throw std::invalid_argument("restitution = " + number(v) + ": must be in (0, 1]");
+}
+void check_friction(double v) { non_negative("friction", v, "(Coulomb coefficient)"); }
+void check_rolling_friction(double v) { non_negative("rolling_friction", v, "(rolling resistance coefficient)"); }
+
+// A settings attribute whose setter checks the value: def_property with getter and checked setter.
+template <class C, class T, class Check>
+auto checked_setter(T C::*member, Check check) {
+  return [member, check](C& c, T v) {
+    check(v);
+    c.*member = v;
+  };
 }
 
 }  // namespace
+
+// ---- shared with world.cpp (common.hpp) ---------------------------------------------------------
+
+namespace sandcell::python {
+
+std::string number(double v) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%g", v);
+  return buf;
+}
+
+Vec3 vec3(const std::string& key, const py::handle& value) {
+  py::array_t<double, py::array::forcecast> a;
+  try {
+    a = py::array_t<double, py::array::forcecast>::ensure(value);
+  } catch (const py::error_already_set&) {
+  }
+  if (!a || a.ndim() != 1 || a.shape(0) != 3)
+    throw std::invalid_argument(key + ": must be a sequence of 3 numbers (shape (3,))" +
+                                (a ? ", got shape with " + std::to_string(a.ndim()) + " dimensions" : std::string()));
+  return Vec3(a.at(0), a.at(1), a.at(2));
+}
+
+double positive(const std::string& key, double v, const char* unit) {
+  if (!(v > 0.0) || !std::isfinite(v))
+    throw std::invalid_argument(key + " = " + number(v) + ": must be a finite value > 0 " + unit);
+  return v;
+}
+
+double non_negative(const std::string& key, double v, const char* unit) {
+  if (!(v >= 0.0) || !std::isfinite(v))
+    throw std::invalid_argument(key + " = " + number(v) + ": must be a finite value >= 0 " + unit);
+  return v;
+}
+
+double finite(const std::string& key, double v, const char* what) {
+  if (!std::isfinite(v)) throw std::invalid_argument(key + " = " + number(v) + ": must be finite " + what);
+  return v;
+}
+
+PathTargets targets_from_python(const py::handle& result) {
+  if (py::isinstance<PathTargets>(result)) return result.cast<PathTargets>();
+  if (py::isinstance<py::tuple>(result) && py::len(result) == 2) {
+    const py::tuple t = result.cast<py::tuple>();
+    PathTargets out;
+    if (py::isinstance<py::str>(t[0]) || !py::isinstance<py::sequence>(t[0]))
+      throw std::invalid_argument("path result control: must be a sequence of 3 of strain, stress, volume");
+    std::vector<std::string> names;
+    for (const py::handle h : t[0].cast<py::sequence>()) {
+      if (!py::isinstance<py::str>(h))
+        throw std::invalid_argument("path result control: must be a sequence of 3 of strain, stress, volume");
+      names.push_back(h.cast<std::string>());
+    }
+    out.control = parse_controls("path result control", names);
+    out.value = vec3("path result value", t[1]);
+    return out;
+  }
+  throw std::invalid_argument("path result: " + std::string(py::str(py::type::of(result))) +
+                              ": must be a sandcell.PathTargets or a tuple (control[3], value[3])");
+}
+
+PathTargets PythonPath::operator()(const PathInput& in) const {
+  py::gil_scoped_acquire gil;
+  return targets_from_python(fn(in));
+}
+
+py::dict extra_to_dict(const CheckpointExtra& x) {
+  py::dict d;
+  d["doubles"] = x.doubles;
+  d["integers"] = x.integers;
+  d["strings"] = x.strings;
+  return d;
+}
+
+namespace {
+// One entry of a checkpoint's extra: name -> value of type T, or ValueError naming it.
+template <class T>
+std::map<std::string, T> extra_entries(const std::string& group, const py::handle& value, const char* allowed) {
+  if (!py::isinstance<py::dict>(value))
+    throw std::invalid_argument("extra['" + group + "']: " + std::string(py::str(py::type::of(value))) +
+                                ": must be a dict of name -> " + allowed);
+  std::map<std::string, T> out;
+  for (const auto& [key, item] : value.cast<py::dict>()) {
+    if (!py::isinstance<py::str>(key))
+      throw std::invalid_argument("extra['" + group + "']: key " + std::string(py::repr(key)) + ": must be a str");
+    const std::string name = py::cast<std::string>(key);
+    try {
+      out[name] = py::cast<T>(item);
+    } catch (const py::cast_error&) {
+      std::string shown = py::repr(item);
+      if (shown.size() > 60) shown = shown.substr(0, 57) + "...";
+      throw std::invalid_argument("extra['" + group + "']['" + name + "'] = " + shown + ": must be " + allowed);
+    }
+  }
+  return out;
+}
+}  // namespace
+
+CheckpointExtra extra_from_dict(const py::handle& o) {
+  CheckpointExtra x;
+  if (o.is_none()) return x;
+  if (!py::isinstance<py::dict>(o))
+    throw std::invalid_argument("extra: " + std::string(py::str(py::type::of(o))) +
+                                ": must be a dict with keys doubles, integers, strings");
+  for (const auto& [key, value] : o.cast<py::dict>()) {
+    const std::string k = py::isinstance<py::str>(key) ? key.cast<std::string>() : std::string(py::repr(key));
+    if (k == "doubles")
+      x.doubles = extra_entries<std::vector<double>>(k, value, "a sequence of numbers, e.g. [5e5]");
+    else if (k == "integers")
+      x.integers = extra_entries<std::vector<std::int64_t>>(k, value, "a sequence of integers, e.g. [3]");
+    else if (k == "strings")
+      x.strings = extra_entries<std::string>(k, value, "a str");
+    else
+      throw std::invalid_argument("extra['" + k + "']: unknown key; allowed: doubles, integers, strings");
+  }
+  return x;
+}
+
+}  // namespace sandcell::python
 
 void bind_protocol(py::module_& m);  // protocol.cpp: sandcell.Protocol and the triaxial series
 
@@ -336,30 +283,30 @@ PYBIND11_MODULE(_sandcell, m) {
   m.attr("__version__") = std::string(version());
   py::register_exception<SimulationError>(m, "SimulationError", PyExc_RuntimeError);
 
-  py::class_<Material>(m, "Material", "A sphere material (SI units)")
+  py::class_<Material>(m, "Material", "A sphere material (SI units); each property is checked as it is set")
       .def(py::init([](double density, double young, double poisson, double restitution, double friction,
                        double rolling_friction) {
-             Material mat{density, young, poisson, restitution, friction, rolling_friction};
-             positive("density", density, "kg/m^3");
-             positive("young", young, "Pa");
-             if (!(poisson > -1.0 && poisson < 0.5))
-               throw std::invalid_argument("poisson = " + std::to_string(poisson) + ": must be in (-1, 0.5)");
-             if (!(restitution > 0.0 && restitution <= 1.0))
-               throw std::invalid_argument("restitution = " + std::to_string(restitution) + ": must be in (0, 1]");
-             if (!(friction >= 0.0))
-               throw std::invalid_argument("friction = " + std::to_string(friction) + ": must be >= 0");
-             if (!(rolling_friction >= 0.0))
-               throw std::invalid_argument("rolling_friction = " + std::to_string(rolling_friction) + ": must be >= 0");
-             return mat;
+             check_density(density);
+             check_young(young);
+             check_poisson(poisson);
+             check_restitution(restitution);
+             check_friction(friction);
+             check_rolling_friction(rolling_friction);
+             return Material{density, young, poisson, restitution, friction, rolling_friction};
            }),
            py::arg("density") = 2650.0, py::arg("young") = 70e9, py::arg("poisson") = 0.3, py::arg("restitution") = 0.5,
            py::arg("friction") = 0.5, py::arg("rolling_friction") = 0.1)
-      .def_readwrite("density", &Material::density)
-      .def_readwrite("young", &Material::young)
-      .def_readwrite("poisson", &Material::poisson)
-      .def_readwrite("restitution", &Material::restitution)
-      .def_readwrite("friction", &Material::friction)
-      .def_readwrite("rolling_friction", &Material::rolling_friction)
+      .def_property("density", [](const Material& a) { return a.density; },
+                    checked_setter(&Material::density, check_density))
+      .def_property("young", [](const Material& a) { return a.young; }, checked_setter(&Material::young, check_young))
+      .def_property("poisson", [](const Material& a) { return a.poisson; },
+                    checked_setter(&Material::poisson, check_poisson))
+      .def_property("restitution", [](const Material& a) { return a.restitution; },
+                    checked_setter(&Material::restitution, check_restitution))
+      .def_property("friction", [](const Material& a) { return a.friction; },
+                    checked_setter(&Material::friction, check_friction))
+      .def_property("rolling_friction", [](const Material& a) { return a.rolling_friction; },
+                    checked_setter(&Material::rolling_friction, check_rolling_friction))
       .def("__repr__", [](const Material& a) {
         std::ostringstream s;
         s << "Material(density=" << a.density << ", young=" << a.young << ", poisson=" << a.poisson
@@ -379,10 +326,18 @@ PYBIND11_MODULE(_sandcell, m) {
       .def_property(
           "rolling", [](const ContactSettings& c) { return k_rolling.name(c.rolling); },
           [](ContactSettings& c, const std::string& v) { c.rolling = k_rolling.parse("contact.rolling", v); })
-      .def_readwrite("rolling_damping", &ContactSettings::rolling_damping)
-      .def_readwrite("skin", &ContactSettings::skin)
+      .def_property("rolling_damping", [](const ContactSettings& c) { return c.rolling_damping; },
+                    checked_setter(&ContactSettings::rolling_damping,
+                                   [](double v) { non_negative("contact.rolling_damping", v, "(-)"); }))
+      .def_property("skin", [](const ContactSettings& c) { return c.skin; },
+                    checked_setter(&ContactSettings::skin, [](double v) { positive("contact.skin", v, "m"); }))
       .def_readwrite("liggghts_compat", &ContactSettings::liggghts_compat)
-      .def_readwrite("sort_interval", &ContactSettings::sort_interval);
+      .def_property("sort_interval", [](const ContactSettings& c) { return c.sort_interval; },
+                    checked_setter(&ContactSettings::sort_interval, [](int v) {
+                      if (v < 0)
+                        throw std::invalid_argument("contact.sort_interval = " + std::to_string(v) +
+                                                    ": must be >= 0 steps (0: never)");
+                    }));
 
   py::class_<PathInput>(m, "PathInput", "What a custom stress path sees at each servo update (compression positive)")
       .def_readonly("step", &PathInput::step)
@@ -457,22 +412,36 @@ PYBIND11_MODULE(_sandcell, m) {
           [](ServoSettings& s, const std::vector<std::string>& c) { s.control = parse_controls("servo.control", c); })
       .def_property(
           "strain_rate", [](const ServoSettings& s) { return s.strain_rate; },
-          [](ServoSettings& s, const py::object& v) { s.strain_rate = vec3("servo.strain_rate", v); })
-      .def_readwrite("ramp_time", &ServoSettings::ramp_time)
-      .def_readwrite("inertial_number", &ServoSettings::inertial_number)
-      .def_readwrite("d50", &ServoSettings::d50)
-      .def_readwrite("density", &ServoSettings::density)
+          [](ServoSettings& s, const py::object& v) { s.strain_rate = finite3("servo.strain_rate", v, "(1/s)"); })
+      .def_property("ramp_time", [](const ServoSettings& s) { return s.ramp_time; },
+                    checked_setter(&ServoSettings::ramp_time, [](double v) { non_negative("servo.ramp_time", v, "s (0: the full rate from the start)"); }))
+      .def_property("inertial_number", [](const ServoSettings& s) { return s.inertial_number; },
+                    checked_setter(&ServoSettings::inertial_number, [](double v) { non_negative("servo.inertial_number", v, "(0: strain_rate as given)"); }))
+      .def_property("d50", [](const ServoSettings& s) { return s.d50; },
+                    checked_setter(&ServoSettings::d50, [](double v) { non_negative("servo.d50", v, "m"); }))
+      .def_property("density", [](const ServoSettings& s) { return s.density; },
+                    checked_setter(&ServoSettings::density, [](double v) { non_negative("servo.density", v, "kg/m^3"); }))
       .def_property(
           "target", [](const ServoSettings& s) { return s.target; },
-          [](ServoSettings& s, const py::object& v) { s.target = vec3("servo.target", v); })
-      .def_readwrite("p", &ServoSettings::p)
-      .def_readwrite("b", &ServoSettings::b)
-      .def_readwrite("sigma3", &ServoSettings::sigma3)
-      .def_readwrite("gain", &ServoSettings::gain)
-      .def_readwrite("integral_time", &ServoSettings::integral_time)
-      .def_readwrite("max_rate", &ServoSettings::max_rate)
-      .def_readwrite("max_rate_ratio", &ServoSettings::max_rate_ratio)
-      .def_readwrite("integral_strain", &ServoSettings::integral_strain)
+          [](ServoSettings& s, const py::object& v) { s.target = finite3("servo.target", v, "(Pa)"); })
+      .def_property("p", [](const ServoSettings& s) { return s.p; },
+                    checked_setter(&ServoSettings::p, [](double v) { finite("servo.p", v, "Pa (compression positive)"); }))
+      .def_property("b", [](const ServoSettings& s) { return s.b; },
+                    checked_setter(&ServoSettings::b, [](double v) {
+                      if (!(v >= 0.0 && v <= 1.0)) throw std::invalid_argument("servo.b = " + number(v) + ": must be in [0, 1]");
+                    }))
+      .def_property("sigma3", [](const ServoSettings& s) { return s.sigma3; },
+                    checked_setter(&ServoSettings::sigma3, [](double v) { finite("servo.sigma3", v, "Pa (compression positive)"); }))
+      .def_property("gain", [](const ServoSettings& s) { return s.gain; },
+                    checked_setter(&ServoSettings::gain, [](double v) { non_negative("servo.gain", v, "1/s"); }))
+      .def_property("integral_time", [](const ServoSettings& s) { return s.integral_time; },
+                    checked_setter(&ServoSettings::integral_time, [](double v) { non_negative("servo.integral_time", v, "s (0: no integral term)"); }))
+      .def_property("max_rate", [](const ServoSettings& s) { return s.max_rate; },
+                    checked_setter(&ServoSettings::max_rate, [](double v) { non_negative("servo.max_rate", v, "1/s"); }))
+      .def_property("max_rate_ratio", [](const ServoSettings& s) { return s.max_rate_ratio; },
+                    checked_setter(&ServoSettings::max_rate_ratio, [](double v) { non_negative("servo.max_rate_ratio", v, "(0: max_rate alone)"); }))
+      .def_property("integral_strain", [](const ServoSettings& s) { return s.integral_strain; },
+                    checked_setter(&ServoSettings::integral_strain, [](double v) { non_negative("servo.integral_strain", v, "(0: integral_time alone)"); }))
       .def_property(
           "interval", [](const ServoSettings& s) { return s.interval; },
           [](ServoSettings& s, int v) {
@@ -484,12 +453,20 @@ PYBIND11_MODULE(_sandcell, m) {
           "custom",
           [](const ServoSettings& s) -> py::object {
             if (!s.custom) return py::none();
+            if (const PythonPath* p = s.custom.target<PythonPath>()) return p->fn;
             return py::cast(s.custom);
           },
           [](ServoSettings& s, const py::object& v) {
+            // A path function is the servo's path: it enables the servo (a function set on a disabled
+            // servo would never be called). None removes it (then World refuses path "custom").
             s.custom = path_function(v);
-            if (s.custom) s.path = StressPath::custom;
-          })
+            if (s.custom) {
+              s.path = StressPath::custom;
+              s.enabled = true;
+            }
+          },
+          "The custom path: a Python callable (PathInput -> PathTargets or (control, value)), a CyclicPath or "
+          "undrained_path(rate); setting it sets path = 'custom' and enabled = True")
       .def("validate", [](const ServoSettings& s) { validate(s); });
 
   py::class_<PathTolerance>(m, "PathTolerance",
@@ -558,18 +535,27 @@ PYBIND11_MODULE(_sandcell, m) {
       .def_readwrite("contact", &Model::contact)
       .def_readwrite("servo", &Model::servo);
 
-  m.def("rayleigh_time", &rayleigh_time, py::arg("r_min"), py::arg("material"),
-        "Rayleigh time of a sphere of radius r_min, s");
   m.def(
-      "median_diameter", [](const std::vector<double>& radius) { return median_diameter(radius); }, py::arg("radius"),
-      "Mass-weighted median diameter of spheres of these radii, m");
+      "rayleigh_time",
+      [](double r_min, const Material& material) { return rayleigh_time(positive("r_min", r_min, "m"), material); },
+      py::arg("r_min"), py::arg("material"), "Rayleigh time of a sphere of radius r_min, s");
+  m.def(
+      "median_diameter",
+      [](const std::vector<double>& radius) {
+        if (radius.empty()) throw std::invalid_argument("radius: empty; at least one radius is required");
+        for (std::size_t k = 0; k < radius.size(); ++k) positive("radius[" + std::to_string(k) + "]", radius[k], "m");
+        return median_diameter(radius);
+      },
+      py::arg("radius"), "Mass-weighted median diameter of spheres of these radii, m");
   m.def(
       "sample_diameters",
       [](double d_min, double d_max, std::size_t count, std::uint64_t seed) {
-        SizeDistribution sizes;
-        sizes.d_min = d_min;
-        sizes.d_max = d_max;
-        return sample_diameters(sizes, count, seed);
+        GenerationSettings g;
+        g.count = count;
+        g.sizes.d_min = positive("d_min", d_min, "m");
+        g.sizes.d_max = positive("d_max", d_max, "m");
+        validate(g);
+        return sample_diameters(g.sizes, count, seed);
       },
       py::arg("d_min"), py::arg("d_max"), py::arg("count"), py::arg("seed") = 1,
       "Diameters drawn uniformly by number (the generator's, for the same seed), m");
@@ -589,9 +575,14 @@ PYBIND11_MODULE(_sandcell, m) {
             GenerationSettings g;
             g.count = count;
             if (gradation.empty()) {
-              g.sizes.d_min = d_min;
-              g.sizes.d_max = d_max;
+              g.sizes.d_min = positive("d_min", d_min, "m");
+              g.sizes.d_max = positive("d_max", d_max, "m");
             } else {
+              // The table gives the sizes: d_min and d_max would have no effect.
+              for (const auto& [key, v] : {std::pair{"d_min", d_min}, std::pair{"d_max", d_max}})
+                if (v != 0.0)
+                  throw std::invalid_argument(std::string(key) + " = " + number(v) +
+                                              ": has no effect with a gradation table (the table gives the sizes)");
               g.sizes.kind = SizeDistribution::Kind::gradation;
               g.sizes.table = std::move(gradation);
             }
@@ -615,7 +606,8 @@ PYBIND11_MODULE(_sandcell, m) {
       .def_property_readonly("contacts", [](py::object self) { return contact_views(self, self.cast<const State&>()); })
       .def_property_readonly("step", [](const State& s) { return s.clock.step; })
       .def_property(
-          "time", [](const State& s) { return s.clock.time; }, [](State& s, double t) { s.clock.time = t; })
+          "time", [](const State& s) { return s.clock.time; },
+          [](State& s, double t) { s.clock.time = non_negative("time", t, "s"); })
       .def(
           "reset_clock", [](State& s) { s.clock = {}; }, "Step 0 at time 0 (a new stage)")
       .def_property_readonly("cell_length", [](const State& s) { return s.cell.length; })
@@ -634,7 +626,7 @@ PYBIND11_MODULE(_sandcell, m) {
           })
       .def_property(
           "servo_integral", [](const State& s) { return s.cell.servo_integral; },
-          [](State& s, const py::object& v) { s.cell.servo_integral = vec3("servo_integral", v); });
+          [](State& s, const py::object& v) { s.cell.servo_integral = finite3("servo_integral", v, "(s)"); });
 
   py::class_<StressInvariants>(m, "StressInvariants")
       .def_readonly("principal", &StressInvariants::principal)
@@ -673,123 +665,7 @@ PYBIND11_MODULE(_sandcell, m) {
       .def_readonly("inertial_number", &Measures::inertial_number)
       .def_readonly("inertial_number_axial", &Measures::inertial_number_axial);
 
-  py::class_<PyWorld>(m, "World",
-                      "One scene: World(model, state, threads=1, initial_forces=True, partition='adaptive'). Arrays "
-                      "are read-only NumPy views into the engine, "
-                      "valid until the next step (docs/python.md)")
-      .def(py::init([](const Model& model, const State& state, int threads, bool initial_forces,
-                       const std::string& partition) {
-             if (threads < 1) throw std::invalid_argument("threads = " + std::to_string(threads) + ": must be >= 1");
-             // How the threads share each pass; every one gives bitwise the same results.
-             const std::optional<Partition> named = partition_from_name(partition);
-             if (!named)
-               throw std::invalid_argument("partition = '" + partition +
-                                           "': allowed 'adaptive', 'owner', 'dynamic' or 'fixed'");
-             PyWorld w;
-             if (const PythonPath* p = model.servo.custom.target<PythonPath>()) {
-               w.slot = p->slot;
-               w.path = p->fn;
-             }
-             w.world = std::make_unique<World>(model, state, systems_for(model),
-                                               ExecutorConfig{Backend::tbb, threads, *named}, initial_forces);
-             return w;
-           }),
-           py::arg("model"), py::arg("state"), py::arg("threads") = 1, py::arg("initial_forces") = true,
-           py::arg("partition") = "adaptive")
-      .def(
-          "step", [](PyWorld& w, std::uint64_t n) { w.guarded([&] { w.world->step(n); }); }, py::arg("n") = 1,
-          "Advances n steps (the GIL is released; a Python path takes it on servo updates)")
-      .def(
-          "step_until",
-          [](PyWorld& w, std::uint64_t n, std::uint64_t every, std::optional<double> max_strain, int axis,
-             const py::object& path, const py::object& stop) {
-            if (axis < 0 || axis > 2)
-              throw std::invalid_argument("axis = " + std::to_string(axis) + ": must be 0, 1 or 2");
-            std::optional<CyclicPath> cyclic;
-            if (!path.is_none()) {
-              if (!py::isinstance<CyclicPath>(path))
-                throw std::invalid_argument("path: must be a CyclicPath (stops when finished)");
-              cyclic = path.cast<CyclicPath>();
-            }
-            const bool py_stop = !stop.is_none();
-            if (py_stop && !PyCallable_Check(stop.ptr()))
-              throw std::invalid_argument("stop: must be callable (step, cell_length) -> bool");
-            std::optional<py::error_already_set> stop_error;
-            std::uint64_t done = 0;
-            done = w.guarded([&] {
-              return w.world->step_until(n, [&](Cell& cell, const Clock& clock) {
-                if (every > 0 && clock.step % every == 0) return true;
-                if (max_strain && -std::log(cell.length[axis] / cell.length0[axis]) >= *max_strain) return true;
-                if (cyclic && cyclic->finished()) return true;
-                if (!py_stop) return false;
-                py::gil_scoped_acquire gil;
-                try {
-                  return stop(clock.step, cell.length).cast<bool>();
-                } catch (py::error_already_set& e) {
-                  stop_error = std::move(e);
-                  return true;
-                }
-              });
-            });
-            if (stop_error) throw *stop_error;
-            return done;
-          },
-          py::arg("n"), py::kw_only(), py::arg("every") = 0, py::arg("max_strain") = py::none(), py::arg("axis") = 0,
-          py::arg("path") = py::none(), py::arg("stop") = py::none(),
-          "Advances at most n steps, stopping after the first step at a multiple of `every`, at a logarithmic strain of "
-          "`axis` >= max_strain, when the CyclicPath `path` is finished, or when stop(step, cell_length) is true (a "
-          "Python stop is called every step: slow). Returns the steps done.")
-      .def(
-          "measure",
-          [](PyWorld& w, bool kinetic_stress, double d50, double density) {
-            return w.guarded([&] { return measure_world(*w.world, kinetic_stress, d50, density); });
-          },
-          py::kw_only(), py::arg("kinetic_stress") = false, py::arg("d50") = 0.0, py::arg("density") = 0.0,
-          "Every measure of docs/physics.md section 5 on the current state")
-      .def_property_readonly(
-          "model", [](const PyWorld& w) { return w.world->model(); }, "A copy of the model")
-      .def(
-          "state", [](const PyWorld& w) { return w.world->state(); }, "A copy of the state")
-      .def_property_readonly("step_count", [](const PyWorld& w) { return w.world->state().clock.step; })
-      .def_property_readonly("time", [](const PyWorld& w) { return w.world->state().clock.time; })
-      .def_property_readonly(
-          "particles", [](py::object self) { return particle_views(self, self.cast<PyWorld&>().world->state()); },
-          "Read-only views of the particle arrays, valid until the next step")
-      .def_property_readonly(
-          "contacts", [](py::object self) { return contact_views(self, self.cast<PyWorld&>().world->state()); },
-          "Read-only views of the contact arrays, valid until the next step")
-      .def_property_readonly(
-          "cell", [](py::object self) { return cell_views(self, self.cast<PyWorld&>().world->state()); },
-          "Read-only views of the cell's 3-vectors (length, length0, rate, servo_integral)")
-      .def(
-          "set_cell_rate",
-          [](PyWorld& w, const py::object& v) {
-            const Vec3 r = vec3("rate", v);
-            if (!r.allFinite()) throw std::invalid_argument("rate: must be finite (1/s, D_kk, tension positive)");
-            w.world->state().cell.rate = r;
-          },
-          py::arg("rate"), "Sets the cell's D_kk (1/s, tension positive) for the next step")
-      .def(
-          "write_checkpoint",
-          [](PyWorld& w, const std::string& path, const py::object& extra) {
-            write_checkpoint(path, w.world->state(), extra_from_dict(extra));
-          },
-          py::arg("path"), py::arg("extra") = py::none())
-      .def(
-          "_address",
-          [](const PyWorld& w, const std::string& name) {
-            const Particles& p = w.world->state().particles;
-            if (name == "position") return reinterpret_cast<std::uintptr_t>(p.position.data());
-            if (name == "velocity") return reinterpret_cast<std::uintptr_t>(p.velocity.data());
-            if (name == "force") return reinterpret_cast<std::uintptr_t>(p.force.data());
-            if (name == "radius") return reinterpret_cast<std::uintptr_t>(p.radius.data());
-            if (name == "contact_force")
-              return reinterpret_cast<std::uintptr_t>(w.world->state().contacts.forces.force.data());
-            throw std::invalid_argument("name = '" + name +
-                                        "': allowed: position, velocity, force, radius, contact_force");
-          },
-          py::arg("name"), "The C++ array's data address (for the tests of the views)")
-      .def("defers_work", [](const PyWorld& w) { return w.world->defers_work(); });
+  bind_world(m);
 
   m.def(
       "write_checkpoint",
@@ -829,7 +705,7 @@ PYBIND11_MODULE(_sandcell, m) {
           },
           py::arg("name"), py::arg("values"), py::arg("units"))
       .def(
-          "write_snapshot", [](ResultsFile& r, const PyWorld& w) { r.write_snapshot(w.world->state()); },
+          "write_snapshot", [](ResultsFile& r, const PyWorld& w) { r.write_snapshot(w.state("ResultsFile.write_snapshot")); },
           py::arg("world"))
       .def(
           "write_snapshot", [](ResultsFile& r, const State& s) { r.write_snapshot(s); }, py::arg("state"))
@@ -848,7 +724,7 @@ PYBIND11_MODULE(_sandcell, m) {
   m.def(
       "append_row",
       [](ResultsFile& r, const PyWorld& w, const Measures& mm, double wall) {
-        triaxial::append_row(r, w.world->state(), mm, wall);
+        triaxial::append_row(r, w.state("append_row"), mm, wall);
       },
       py::arg("results"), py::arg("world"), py::arg("measures"), py::arg("wall") = 0.0,
       "Appends one row of the triaxial app's series from measure()'s result (docs/physics.md section 8)");
