@@ -4,6 +4,8 @@
 // (independent of the engine's writer).
 #include "run.hpp"
 
+#include <unistd.h>
+
 #include <doctest/doctest.h>
 #include <hdf5.h>
 
@@ -58,8 +60,11 @@ inline Result run(std::vector<std::string> args) {
   return r;
 }
 
+// An empty directory of this process's (the pid in its name: two test runs at once, e.g. from two
+// checkouts, never share one).
 inline fs::path fresh_dir(const std::string& name) {
-  const fs::path dir = fs::temp_directory_path() / ("sandcell_test_triaxial_" + name);
+  const fs::path dir =
+      fs::temp_directory_path() / ("sandcell_test_triaxial_" + std::to_string(::getpid()) + "_" + name);
   fs::remove_all(dir);
   fs::create_directories(dir);
   return dir;
