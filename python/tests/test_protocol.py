@@ -171,3 +171,15 @@ def test_the_contact_law_registry_is_what_the_module_accepts():
         assert c.rolling == name
     with pytest.raises(ValueError, match="mindlin_rescale"):
         c.tangential = "mindlin"
+
+
+def test_cyclic_settings_that_would_do_nothing_are_refused():
+    """[cyclic] without a cyclic test, a cyclic test without an end, a stress-mode tolerance in strain
+    mode: each a ConfigError naming the key."""
+    text = open(os.path.join(HERE, "small-cyclic.toml")).read()
+    with pytest.raises(sc.ConfigError, match="cyclic.tolerance"):
+        sc.Protocol.parse(text.replace("cycles = 2", "cycles = 2\ntolerance = 0.1"))
+    with pytest.raises(sc.ConfigError, match="cyclic.cycles"):
+        sc.Protocol.parse(text.replace("cycles = 2", "cycles = 0"))
+    with pytest.raises(sc.ConfigError, match=r"\[cyclic\]"):
+        sc.Protocol.parse(text.replace('path = "cyclic"', 'path = "constant_p"'))

@@ -217,12 +217,17 @@ void parse_cyclic(const toml::table& root, const std::string& source, CyclicConf
   s.choice("axial", c.axial, {{"stress", std::string("stress")}, {"strain", std::string("strain")}});
   s.number("lower", c.lower, -10.0, 10.0, "must be in [-10, 10] (q/p0 in stress mode, axial strain in strain mode)");
   s.number("upper", c.upper, -10.0, 10.0, "must be in [-10, 10] (q/p0 in stress mode, axial strain in strain mode)");
-  s.number("tolerance", c.tolerance, 0.0, 0.49, "must be in [0, 0.49] (stress mode: reversal within this share of "
+  double tolerance = std::nan("");
+  s.number("tolerance", tolerance, 0.0, 0.49, "must be in [0, 0.49] (stress mode: reversal within this share of "
            "upper - lower)");
   s.boolean("undrained", c.undrained);
   s.integer("cycles", c.cycles, 0, 1000000, "must be an integer in [0, 1e6] (0: no limit)");
   s.number("max_strain", c.max_strain, 0.0, 2.0, "must be in [0, 2] (|eps1| that ends the test; 0: no limit)");
   s.check_unknown();
+  if (!std::isnan(tolerance)) {  // the reversal tolerance acts on q: in strain mode it would do nothing
+    if (c.axial == "strain") s.fail("tolerance", num(tolerance), "only with axial = \"stress\"");
+    c.tolerance = tolerance;
+  }
 }
 
 void check_cyclic(const Config& c, const std::string& source) {
