@@ -355,28 +355,22 @@ struct ContactKernel {
     }
   }
 
-#if defined(__AVX2__)
-  // Phase 3 for four touching pairs at once, in the lanes of AVX2 registers: the default laws
-  // (Hertz, Mindlin with history, epsd2 or no rolling). Each lane does the scalar visit's
-  // operations in the scalar visit's order (sums of three as Eigen reduces a 3-vector: the first
-  // two, then the third), and IEEE arithmetic is correctly rounded in vector form, so a pair's
-  // result is bitwise the one of visit() (dem-bench's digest, and the portable build without this
-  // path, and tests/systems/test_contact_lanes.cpp, check it). Where a lane is at a cap, both
-  // outcomes are computed and each lane's is selected; the square roots and divisions of the caps
-  // are skipped when no lane is (in a block sorted by regime, most groups). docs/performance.md
-  // gives the measured effect.
+#if defined(SANDCELL_LANES)
+  // Phase 3 for four touching pairs at once, in the lanes of AVX2 registers, when every law of the
+  // pass has a four-lane form (systems/laws/lanes.hpp; today Hertz, Mindlin with history, epsd2 or
+  // no rolling): this is the plumbing (loads, the slip velocity, torques, stores, regimes), the
+  // physics is the laws' force4 / gamma_t4 / evaluate4. Each lane does the scalar visit's
+  // operations in the scalar visit's order, so a pair's result is bitwise the one of visit()
+  // (dem-bench's digest, the portable build without this path, and
+  // tests/systems/test_contact_lanes.cpp, check it). Where a lane is at a cap, both outcomes are
+  // computed and each lane's is selected; the square roots and divisions of the caps are skipped
+  // when no lane is (in a block sorted by regime, most groups).
   // Not for the setup pass (Update false), which runs once per scene: fewer instantiations.
-  static constexpr bool k_lanes = Update && std::is_same_v<Normal, Hertz> &&
-                                  std::is_same_v<Tangential, MindlinHistory> &&
-                                  (Roll == RollingModel::epsd2 || Roll == RollingModel::none);
-  using V = double __attribute__((vector_size(32)));
-  using L = long long __attribute__((vector_size(32)));
-
-  static V sum3(V a, V b, V c) { return (a + b) + c; }
-  static V vabs(V a) { return (V)((L)a & L{~(1ll << 63), ~(1ll << 63), ~(1ll << 63), ~(1ll << 63)}); }
-  static V vsqrt(V a) { return (V)_mm256_sqrt_pd((__m256d)a); }
-  static V sel(L m, V a, V b) { return m ? a : b; }
-  static bool any(L m) { return _mm256_movemask_pd((__m256d)m) != 0; }
+  static constexpr bool k_lanes = Update && has_lanes<Normal> && has_lanes<Tangential> &&
+                                  (Roll == RollingModel::none || has_lanes<RollingEvaluator<Roll, Update>>);
+  using V = lanes::V;
+  using L = lanes::L;
+  static V sum3(V a, V b, V c) { return lanes::sum3(a, b, c); }
   // The four lanes f(0), ..., f(3).
   template <class F>
   static V lanes_of(F f) {
@@ -487,44 +481,18 @@ struct ContactKernel {
     const V friction = of_mat(&PairMaterial::friction);
     const V damping_t = of_mat(&PairMaterial::damping_ratio_t);
     const V v_n = sum3(vx * nx, vy * ny, vz * nz);
-    const V f_n = k_n * ov - gamma_n * v_n;
+    const V f_n = Normal::force4(k_n, gamma_n, ov, v_n);
     // v_t = v_rel - v_n n + n x (c_i w_i + c_j w_j)
     const V ux = c_i * wix + c_j * wjx, uy = c_i * wiy + c_j * wjy, uz = c_i * wiz + c_j * wjz;
     const V vtx = (vx - v_n * nx) + (ny * uz - nz * uy);
     const V vty = (vy - v_n * ny) + (nz * ux - nx * uz);
     const V vtz = (vz - v_n * nz) + (nx * uy - ny * ux);
-    const V f_cap = friction * vabs(f_n);
-    const V gamma_t = gamma_n * damping_t;
-    // Mindlin with history
-    V hx, hy, hz;
+    const V f_cap = friction * lanes::vabs(f_n);
+    const V gamma_t = Normal::gamma_t4(gamma_n, damping_t);
+    // The tangential law (the lanes run only in the stepping pass, k_lanes: the history advances).
+    V hx, hy, hz, ftx, fty, ftz;
     of_pair3(d.hist_t, hx, hy, hz);
-    hx += vtx * d.dt;  // the lanes run only in the stepping pass (k_lanes): the history advances
-    hy += vty * d.dt;
-    hz += vtz * d.dt;
-    const V hn = sum3(hx * nx, hy * ny, hz * nz);
-    hx -= hn * nx;
-    hy -= hn * ny;
-    hz -= hn * nz;
-    const V mk_t = -k_t;
-    V ftx = mk_t * hx, fty = mk_t * hy, ftz = mk_t * hz;
-    const V f2 = sum3(ftx * ftx, fty * fty, ftz * ftz);
-    const L t_cap = f2 > f_cap * f_cap;
-    // The caps' square roots and divisions only where a lane is capped: in a group sorted by
-    // regime, seldom.
-    if (any(t_cap)) [[unlikely]] {
-      const V scale = f_cap / vsqrt(f2);
-      const V ctx = ftx * scale, cty = fty * scale, ctz = ftz * scale;
-      hx = sel(t_cap, ctx / mk_t, hx);
-      hy = sel(t_cap, cty / mk_t, hy);
-      hz = sel(t_cap, ctz / mk_t, hz);
-      ftx = sel(t_cap, ctx, ftx - gamma_t * vtx);
-      fty = sel(t_cap, cty, fty - gamma_t * vty);
-      ftz = sel(t_cap, ctz, ftz - gamma_t * vtz);
-    } else {
-      ftx -= gamma_t * vtx;
-      fty -= gamma_t * vty;
-      ftz -= gamma_t * vtz;
-    }
+    const L t_cap = Tangential::force4(nx, ny, nz, vtx, vty, vtz, k_t, gamma_t, f_cap, d.dt, hx, hy, hz, ftx, fty, ftz);
     // torques of the tangential force: -c n x F_t
     const V ax = ny * ftz - nz * fty, ay = nz * ftx - nx * ftz, az = nx * fty - ny * ftx;
     const V mc_i = -c_i, mc_j = -c_j;
@@ -532,29 +500,12 @@ struct ContactKernel {
     V tjx = mc_j * ax, tjy = mc_j * ay, tjz = mc_j * az;
     L r_cap = L{0, 0, 0, 0};
     V gx, gy, gz;
-    if constexpr (Roll == RollingModel::epsd2) {
+    if constexpr (Roll != RollingModel::none) {  // the rolling law's four-lane form (k_lanes)
       const V mu_r = of_mat(&PairMaterial::rolling_friction);
       const V r_star = of_pair(d.r_star);
-      V wx = wix - wjx, wy = wiy - wjy, wz = wiz - wjz;
-      const V wn = sum3(wx * nx, wy * ny, wz * nz);
-      wx -= wn * nx;
-      wy -= wn * ny;
-      wz -= wn * nz;
-      const V k_r = k_t * r_star * r_star;
-      const V cap = mu_r * r_star * vabs(f_n);
-      of_pair3(d.hist_r, gx, gy, gz);
-      const V kdt = k_r * d.dt;
-      gx += kdt * wx;
-      gy += kdt * wy;
-      gz += kdt * wz;
-      const V g2 = sum3(gx * gx, gy * gy, gz * gz);
-      r_cap = g2 > cap * cap;
-      if (any(r_cap)) [[unlikely]] {
-        const V rs = cap / vsqrt(g2);
-        gx = sel(r_cap, gx * rs, gx);
-        gy = sel(r_cap, gy * rs, gy);
-        gz = sel(r_cap, gz * rs, gz);
-      }
+      r_cap = roll.evaluate4(
+          nx, ny, nz, wix - wjx, wiy - wjy, wiz - wjz, f_n, k_t, r_star, mu_r, d.dt,
+          [&](V& x, V& y, V& z) { of_pair3(d.hist_r, x, y, z); }, gx, gy, gz);
       tix -= gx;
       tiy -= gy;
       tiz -= gz;
@@ -567,7 +518,7 @@ struct ContactKernel {
     to_pair3(d.torque_i, tix, tiy, tiz);
     to_pair3(d.torque_j, tjx, tjy, tjz);
     to_pair3(d.hist_t, hx, hy, hz);
-    if constexpr (Roll == RollingModel::epsd2) to_pair3(d.hist_r, gx, gy, gz);
+    if constexpr (Roll != RollingModel::none) to_pair3(d.hist_r, gx, gy, gz);
     for (int l = 0; l < 4; ++l) {
       const std::size_t q = k[l];
       const std::uint8_t now = static_cast<std::uint8_t>((t_cap[l] & 1) | (r_cap[l] & 2));
@@ -584,7 +535,7 @@ struct ContactKernel {
   // Phase 3 over the block in the order `at(u)`, u < nb: with the lanes, touching pairs in fours.
   template <bool G, class At>
   void phase3(const Block& blk, std::size_t k0, std::size_t nb, At at, unsigned& changed) const {
-#if defined(__AVX2__)
+#if defined(SANDCELL_LANES)
     if constexpr (k_lanes) {
       std::uint8_t four[4];
       unsigned held = 0;

@@ -4,6 +4,7 @@
 //   gamma_n = -2 sqrt(5/6) beta sqrt(S_n m*), S_n = 2 E* sqrt(R* delta),
 //   gamma_t = -2 sqrt(5/6) beta sqrt(S_t m*) = gamma_n sqrt(S_t / S_n),
 //   F_n = k_n delta - gamma_n v_n, stored energy 8/15 E* sqrt(R*) delta^(5/2).
+#include "systems/laws/lanes.hpp"
 #include "systems/laws/law.hpp"
 
 #include <array>
@@ -31,6 +32,16 @@ struct Hertz {
   [[gnu::always_inline]] static inline double force(double k_n, double gamma_n, double overlap, double v_n) {
     return k_n * overlap - gamma_n * v_n;
   }
+#if defined(SANDCELL_LANES)
+  // The four-lane forms of force and gamma_t (systems/laws/lanes.hpp).
+  static constexpr bool lanes = true;
+  [[gnu::always_inline]] static inline lanes::V force4(lanes::V k_n, lanes::V gamma_n, lanes::V overlap, lanes::V v_n) {
+    return k_n * overlap - gamma_n * v_n;
+  }
+  [[gnu::always_inline]] static inline lanes::V gamma_t4(lanes::V gamma_n, lanes::V damping_ratio_t) {
+    return gamma_n * damping_ratio_t;
+  }
+#endif
   static AtRest at_rest(const PairMaterial& mat, const ContactSettings&, double r_star, double, double overlap) {
     const double sqrt_rd = std::sqrt(r_star * overlap);
     return AtRest{4.0 / 3.0 * mat.e_star * sqrt_rd, 8.0 * mat.g_star * sqrt_rd,

@@ -17,6 +17,7 @@
 // Each law: `name` (ContactSettings::tangential's value; the registry is TangentialLaws below),
 // `id`, `radius_history` (whether it keeps a_prev), force<Update>(..., a, a_prev) and energy.
 // Update: whether the history advances (false in the setup pass, which freezes it).
+#include "systems/laws/lanes.hpp"
 #include "systems/laws/law.hpp"
 
 #include <cmath>
@@ -56,6 +57,46 @@ struct MindlinHistory {
   }
   /// Stored energy 1/2 k_t |u_t|^2, J.
   static double energy(double k_t, double h2) { return 0.5 * k_t * h2; }
+#if defined(SANDCELL_LANES)
+  // The four-lane form of force<true> (systems/laws/lanes.hpp): the history h (in, out) and the force
+  // f_t (out) as x, y, z lanes; returns the lanes at the Coulomb cap. The cap's square root and
+  // division only where a lane is capped (in a group sorted by regime, seldom).
+  static constexpr bool lanes = true;
+  [[gnu::always_inline]] static inline lanes::L force4(lanes::V nx, lanes::V ny, lanes::V nz, lanes::V vtx,
+                                                      lanes::V vty, lanes::V vtz, lanes::V k_t, lanes::V gamma_t,
+                                                      lanes::V f_cap, double dt, lanes::V& hx, lanes::V& hy,
+                                                      lanes::V& hz, lanes::V& ftx, lanes::V& fty, lanes::V& ftz) {
+    using lanes::V;
+    hx += vtx * dt;
+    hy += vty * dt;
+    hz += vtz * dt;
+    const V hn = lanes::sum3(hx * nx, hy * ny, hz * nz);
+    hx -= hn * nx;
+    hy -= hn * ny;
+    hz -= hn * nz;
+    const V mk_t = -k_t;
+    ftx = mk_t * hx;
+    fty = mk_t * hy;
+    ftz = mk_t * hz;
+    const V f2 = lanes::sum3(ftx * ftx, fty * fty, ftz * ftz);
+    const lanes::L t_cap = f2 > f_cap * f_cap;
+    if (lanes::any(t_cap)) [[unlikely]] {
+      const V scale = f_cap / lanes::vsqrt(f2);
+      const V ctx = ftx * scale, cty = fty * scale, ctz = ftz * scale;
+      hx = lanes::sel(t_cap, ctx / mk_t, hx);
+      hy = lanes::sel(t_cap, cty / mk_t, hy);
+      hz = lanes::sel(t_cap, ctz / mk_t, hz);
+      ftx = lanes::sel(t_cap, ctx, ftx - gamma_t * vtx);
+      fty = lanes::sel(t_cap, cty, fty - gamma_t * vty);
+      ftz = lanes::sel(t_cap, ctz, ftz - gamma_t * vtz);
+    } else {
+      ftx -= gamma_t * vtx;
+      fty -= gamma_t * vty;
+      ftz -= gamma_t * vtz;
+    }
+    return t_cap;
+  }
+#endif
 };
 
 struct MindlinIncremental {

@@ -13,6 +13,7 @@
 // the contact pass it reuses them from registers. With RollingModel::none the contact pass is
 // instantiated without it and the rolling history is never allocated; cdt keeps no history either,
 // so it allocates none.
+#include "systems/laws/lanes.hpp"
 #include "systems/laws/law.hpp"
 
 #include <cmath>
@@ -82,6 +83,39 @@ struct RollingEvaluator {
       return h;
     }
   }
+#if defined(SANDCELL_LANES)
+  // epsd2's four-lane form of evaluate (systems/laws/lanes.hpp), stepping pass only: the stored moment
+  // g as x, y, z lanes, loaded by load(gx, gy, gz) where the scalar form reads it, updated in place;
+  // returns the lanes at the cap.
+  static constexpr bool lanes = Kind == RollingModel::epsd2 && Update;
+  template <class Load>
+  [[gnu::always_inline]] inline lanes::L evaluate4(lanes::V nx, lanes::V ny, lanes::V nz, lanes::V wx, lanes::V wy,
+                                                  lanes::V wz, lanes::V f_n, lanes::V k_t, lanes::V r_star,
+                                                  lanes::V mu_r, double step, Load&& load, lanes::V& gx,
+                                                  lanes::V& gy, lanes::V& gz) const {
+    using lanes::V;
+    const V wn = lanes::sum3(wx * nx, wy * ny, wz * nz);
+    wx -= wn * nx;
+    wy -= wn * ny;
+    wz -= wn * nz;
+    const V k_r = k_t * r_star * r_star;
+    const V cap = mu_r * r_star * lanes::vabs(f_n);
+    load(gx, gy, gz);
+    const V kdt = k_r * step;  // step: the pass's dt (= this->dt), as the caller holds it
+    gx += kdt * wx;
+    gy += kdt * wy;
+    gz += kdt * wz;
+    const V g2 = lanes::sum3(gx * gx, gy * gy, gz * gz);
+    const lanes::L r_cap = g2 > cap * cap;
+    if (lanes::any(r_cap)) [[unlikely]] {
+      const V rs = cap / lanes::vsqrt(g2);
+      gx = lanes::sel(r_cap, gx * rs, gx);
+      gy = lanes::sel(r_cap, gy * rs, gy);
+      gz = lanes::sel(r_cap, gz * rs, gz);
+    }
+    return r_cap;
+  }
+#endif
 };
 
 }  // namespace sandcell
