@@ -75,21 +75,34 @@ def test_the_series_schema_is_one_table():
 
 
 def test_the_accuracy_watch_warns_once_per_indicator():
+    """The cloud at rest trips nothing (no false positive); 1,000 steps into the compression the
+    kinetic energy is ~80 x the elastic one and the inertial number ~1 (a loose cloud shrinking at
+    the servo's cap), the unbalanced force and overlap within their limits: one line for each of the
+    two indicators beyond its limit (named, with its value and limit), none for the others, none
+    repeated at the next check, the worst values kept."""
     p = sc.Protocol.load(SMALL)
-    world = sc.World(p.prepare_model(0.5e6), p.cloud(p.prepare_model(0.5e6)), threads=1)
-    m = world.measure(d50=p.d50, density=2650.0)
+    prep = p.prepare_model(0.5e6)
+    world = sc.World(prep, p.cloud(prep), threads=1)
     lines = []
     w = sc.AccuracyWatch("job", lines.append)
-    w.check(m, 1)
-    w.check(m, 2)
-    assert len(lines) <= 4 and all(line.startswith("job: warning: step 1") for line in lines)
-    assert "overlap/R" in w.worst()
+    w.check(world.measure(d50=p.d50, density=2650.0), 0)
+    assert lines == []
+    world.step(1000)
+    m = world.measure(d50=p.d50, density=2650.0)
+    ratio = m.kinetic_energy / m.elastic_energy
+    assert ratio > 0.05 and m.inertial_number_axial > 3.15e-3
+    assert m.unbalanced < 0.1 and m.max_overlap_ratio < 0.05
+    w.check(m, 1000)
+    w.check(m, 1001)
+    assert len(lines) == 2, lines
+    assert lines[0].startswith("job: warning: step 1000: inertial number ") and "> 0.00315" in lines[0]
+    assert lines[1].startswith("job: warning: step 1000: kinetic / elastic energy = ") and "> 0.05" in lines[1]
+    assert f"max I {m.inertial_number_axial:.2g}" in w.worst() and f"Ek/Ee {ratio:.2g}" in w.worst()
 
 
 def test_the_path_registry_is_one_list_for_the_app_and_the_analysis():
-    """tests.path names (apps/triaxial/protocol/paths.cpp) are the analysis's PATHS, in order."""
-    import sys
-    sys.path.insert(0, os.path.join(HERE, "..", "..", "apps", "analysis"))
+    """tests.path names (apps/triaxial/protocol/paths.cpp) are the analysis's PATHS, in order (ctest puts
+    apps/analysis on PYTHONPATH beside the module)."""
     from sandcell_analysis.results import PATHS
     names = [p["name"] for p in sc.test_paths()]
     assert tuple(names) == PATHS

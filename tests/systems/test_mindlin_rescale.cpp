@@ -50,10 +50,13 @@ std::vector<SystemSpec> contact_systems() {
 }
 
 struct Loaded {
-  double f_t;     // N, tangential force on sphere 0 after the normal move
-  double u;       // m, the stored displacement after it
-  double radius;  // m, the stored contact radius (mindlin_rescale), else NaN
+  double f_t;             // N, tangential force on sphere 0 after the normal move
+  double u;               // m, the stored displacement after it
+  double radius;          // m, the stored contact radius (mindlin_rescale), else NaN
+  double delta1, delta2;  // m, the overlaps as the engine sees them (2R - |x0 - x1|) before and after
 };
+
+double overlap_of(const State& s) { return 2.0 * k_r - (s.particles.position[0] - s.particles.position[1]).norm(); }
 
 // Shear by u at delta1 (below the Coulomb cap), then move sphere 1 along x to overlap delta2 with
 // no tangential motion and step once.
@@ -63,12 +66,13 @@ Loaded load_then_move(TangentialModel law, double delta1, double delta2) {
   s.particles.velocity[1] = Vec3(0, 1e-2, 0);
   World world(model, s, contact_systems(), ExecutorConfig{Backend::tbb, 2});
   world.step(1000);  // u = 1000 v dt = 1e-7 m
+  const double d1 = overlap_of(world.state());
   world.state().particles.velocity[1].setZero();
   world.state().particles.position[1].x() += delta1 - delta2;
   world.step();
   const Contacts& c = world.state().contacts;
   return {world.state().particles.force[0].y(), c.tangential[0].norm(),
-          c.has_tangential_radius ? c.tangential_radius[0] : std::nan("")};
+          c.has_tangential_radius ? c.tangential_radius[0] : std::nan(""), d1, overlap_of(world.state())};
 }
 
 }  // namespace
@@ -77,9 +81,10 @@ TEST_CASE("mindlin_rescale: on unloading F_t = k_t(delta2) u sqrt(delta2 / delta
   // Closed form: k_t = 8 G* a, a = sqrt(R* delta). Sheared by u at delta1, then unloaded to delta2 with no
   // tangential motion: the displacement is scaled by a2/a1 = sqrt(delta2/delta1), so F_t = k_t(delta2) u
   // sqrt(delta2/delta1), half of the history law's k_t(delta2) u at delta2 = delta1/4. Reloading (delta2 >
-  // delta1) scales nothing. Tolerance: u is a sum of 1000 equal increments (1000 roundings) and the rest a
-  // few operations: 4 x 1000 eps, as the history law's own test; a wrong exponent (a2/a1 squared, or the
-  // rescale skipped) is off by a factor of 2.
+  // delta1) scales nothing. The closed form takes the overlaps the engine sees (the positions' rounding
+  // moves delta by ~1e-10 relative from the nominal). Tolerance: u is a sum of 1000 equal increments (1000
+  // roundings) and the rest a few operations: 4 x 1000 eps, as the history law's own test; a wrong exponent
+  // (a2/a1 squared, or the rescale skipped) is off by a factor of 2.
   const double delta1 = 1e-6, u = 1000 * 1e-2 * 1e-8;
   const Material mat = model_of(TangentialModel::history).materials[0];
   const double g_star = 1.0 / (2.0 * (2.0 - mat.poisson) / (mat.young / (2.0 * (1.0 + mat.poisson))));
@@ -89,12 +94,14 @@ TEST_CASE("mindlin_rescale: on unloading F_t = k_t(delta2) u sqrt(delta2 / delta
     INFO("delta2 / delta1 = " << delta2 / delta1);
     const Loaded rescale = load_then_move(TangentialModel::mindlin_rescale, delta1, delta2);
     const Loaded history = load_then_move(TangentialModel::history, delta1, delta2);
-    const double k_t2 = 8.0 * g_star * std::sqrt(r_star * delta2);
-    const double scale = delta2 < delta1 ? std::sqrt(delta2 / delta1) : 1.0;
-    CHECK(history.f_t == doctest::Approx(k_t2 * u).epsilon(1e-9));
-    CHECK(rescale.f_t == doctest::Approx(k_t2 * u * scale).epsilon(tol + 1e-9));
-    CHECK(rescale.u == doctest::Approx(u * scale).epsilon(tol + 1e-9));
-    CHECK(rescale.radius == doctest::Approx(std::sqrt(r_star * delta2)).epsilon(1e-9));
+    REQUIRE(rescale.delta2 == history.delta2);  // the same positions in both runs
+    const double d1 = rescale.delta1, d2 = rescale.delta2;
+    const double k_t2 = 8.0 * g_star * std::sqrt(r_star * d2);
+    const double scale = d2 < d1 ? std::sqrt(r_star * d2) / std::sqrt(r_star * d1) : 1.0;  // a2 / a1
+    CHECK(history.f_t == doctest::Approx(k_t2 * u).epsilon(tol));
+    CHECK(rescale.f_t == doctest::Approx(k_t2 * u * scale).epsilon(tol));
+    CHECK(rescale.u == doctest::Approx(u * scale).epsilon(tol));
+    CHECK(rescale.radius == std::sqrt(r_star * d2));  // the engine's own formula: exact
     CHECK(std::isnan(history.radius));  // the other laws allocate no radius history
   }
 }
