@@ -86,13 +86,6 @@ Vec3 path_targets(const ServoSettings& servo, double s1) {
 }
 
 namespace {
-// The path's own stress scale: errors are normalized by |sigma*_k| (docs/physics.md section 6), floored at a
-// thousandth of this scale so a target passing through zero (constant p at eta near 3) cannot
-// divide by zero.
-double stress_scale(const ServoSettings& servo) { return path_scale(servo); }
-}  // namespace
-
-namespace {
 // The PI law of one stress-controlled axis on its normalized error, capped at +-cap, with integral
 // time t_i; `integral` null or t_i = 0: a P law.
 double pi_rate(const ServoSettings& servo, double error, double* integral, double interval, double cap, double t_i) {
@@ -135,7 +128,10 @@ Limits limits(const ServoSettings& servo, const Vec3& rate, const std::array<Axi
 
 Vec3 servo_strain_rates(const ServoSettings& servo, const Vec3& sigma, Vec3* integral, double interval, double time) {
   const Vec3 target = path_targets(servo, sigma[0]);
-  const double floor = 1e-3 * stress_scale(servo);
+  // Errors are normalized by |sigma*_k| (docs/physics.md section 6), floored at a thousandth of the
+  // path's own stress scale, so a target passing through zero (constant p at eta near 3) cannot
+  // divide by zero.
+  const double floor = 1e-3 * path_scale(servo);
   // At a set inertial number the strain-controlled rates follow the measured mean stress:
   // |eps_dot| d50 sqrt(rho / p) = I, p floored like the errors' normalization.
   const double scale =

@@ -8,6 +8,7 @@
 
 #include <toml++/toml.h>
 
+#include <algorithm>
 #include <map>
 #include <set>
 #include <sstream>
@@ -59,8 +60,6 @@ namespace {
 const char* distribution_name(SizeDistribution::Kind k) {
   return k == SizeDistribution::Kind::gradation ? "gradation" : "uniform";
 }
-std::string tangential_name(TangentialModel m) { return tangential_law_name(m); }
-std::string rolling_name(RollingModel m) { return rolling_law_name(m); }
 
 // The values of the keys that shape a prepared sample, as text, in the order they are reported.
 // material.friction and rolling_friction are left out (the preparation uses prepare.*; the
@@ -73,8 +72,7 @@ std::vector<std::pair<std::string, std::string>> sample_values(const Config& c) 
   std::string gradation;
   for (const auto& [d, pct] : g.sizes.table)
     gradation += (gradation.empty() ? "[" : ", [") + num(d) + ", " + num(pct) + "]";
-  const auto v_char = k.parameters.find("characteristic_velocity");
-  return {
+  std::vector<std::pair<std::string, std::string>> values = {
       {"sample.file", "\"" + c.sample.packing_file + "\""},
       {"sample.count", std::to_string(g.count)},
       {"sample.distribution", distribution_name(g.sizes.kind)},
@@ -88,9 +86,8 @@ std::vector<std::pair<std::string, std::string>> sample_values(const Config& c) 
       {"material.poisson", num(c.material.poisson)},
       {"material.restitution", num(c.material.restitution)},
       {"contact.normal", "\"" + k.normal + "\""},
-      {"contact.characteristic_velocity", v_char == k.parameters.end() ? "(none)" : num(v_char->second)},
-      {"contact.tangential", tangential_name(k.tangential)},
-      {"contact.rolling", rolling_name(k.rolling)},
+      {"contact.tangential", tangential_law_name(k.tangential)},
+      {"contact.rolling", rolling_law_name(k.rolling)},
       {"contact.rolling_damping", num(k.rolling_damping)},
       {"contact.skin", num(k.skin)},
       {"contact.sort_interval", std::to_string(k.sort_interval)},
@@ -105,6 +102,18 @@ std::vector<std::pair<std::string, std::string>> sample_values(const Config& c) 
       {"prepare.check_interval", std::to_string(p.check_interval)},
       {"prepare.chain", p.chain ? "true" : "false"},
   };
+  // The normal laws' parameters ([contact] keys, from the law registry), after contact.normal.
+  std::vector<std::pair<std::string, std::string>> parameters;
+  for (const NormalLawInfo& law : normal_laws())
+    for (const LawParameter& q : law.parameters) {
+      const auto it = k.parameters.find(std::string(q.name));
+      parameters.emplace_back("contact." + std::string(q.name),
+                              it == k.parameters.end() ? "(none)" : num(it->second));
+    }
+  const auto after_normal =
+      std::find_if(values.begin(), values.end(), [](const auto& v) { return v.first == "contact.normal"; });
+  values.insert(after_normal + 1, parameters.begin(), parameters.end());
+  return values;
 }
 
 // Whether a key as written shapes the sample (the fallback of sample_changes).
