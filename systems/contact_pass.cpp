@@ -8,6 +8,7 @@
 #include "systems/pair_list.hpp"
 
 #include "engine/assert.hpp"
+#include "engine/name_table.hpp"
 
 #include <algorithm>
 #include <array>
@@ -826,20 +827,19 @@ std::string tangential_law_name(TangentialModel law) {
     if (id == law) return n;
   return "?";
 }
+static_assert(in_id_order(k_rolling_laws), "k_rolling_laws: one row per RollingModel, in enum order");
+
 std::vector<std::string> rolling_law_names() {
   std::vector<std::string> out;
   for (const RollingLawInfo& r : k_rolling_laws) out.emplace_back(r.name);
   return out;
 }
 std::optional<RollingModel> rolling_law(std::string_view name) {
-  for (const RollingLawInfo& r : k_rolling_laws)
-    if (r.name == name) return r.id;
-  return std::nullopt;
+  const RollingLawInfo* r = find_named(std::span<const RollingLawInfo>(k_rolling_laws), name);
+  return r ? std::optional<RollingModel>(r->id) : std::nullopt;
 }
 std::string rolling_law_name(RollingModel law) {
-  for (const RollingLawInfo& r : k_rolling_laws)
-    if (r.id == law) return std::string(r.name);
-  return "?";
+  return std::string(k_rolling_laws[static_cast<std::size_t>(law)].name);
 }
 
 double contact_elastic_energy(const Model& model, const State& state) {

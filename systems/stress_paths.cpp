@@ -1,5 +1,7 @@
 #include "systems/stress_paths.hpp"
 
+#include "engine/name_table.hpp"
+
 #include <cmath>
 #include <iterator>
 
@@ -31,12 +33,7 @@ constexpr StressPathSpec k_paths[] = {
      PathScale::none, false, false, nullptr},
 };
 
-constexpr bool in_enum_order() {
-  for (std::size_t k = 0; k < std::size(k_paths); ++k)
-    if (static_cast<std::size_t>(k_paths[k].id) != k) return false;
-  return true;
-}
-static_assert(in_enum_order(), "k_paths: one row per StressPath, in enum order");
+static_assert(in_id_order(k_paths), "k_paths: one row per StressPath, in enum order");
 
 }  // namespace
 
@@ -44,17 +41,9 @@ std::span<const StressPathSpec> stress_paths() { return k_paths; }
 
 const StressPathSpec& stress_path(StressPath path) { return k_paths[static_cast<std::size_t>(path)]; }
 
-const StressPathSpec* find_stress_path(std::string_view name) {
-  for (const StressPathSpec& s : k_paths)
-    if (s.name == name) return &s;
-  return nullptr;
-}
+const StressPathSpec* find_stress_path(std::string_view name) { return find_named(stress_paths(), name); }
 
-std::string stress_path_names() {
-  std::string out;
-  for (const StressPathSpec& s : k_paths) out += (out.empty() ? "" : ", ") + std::string(s.name);
-  return out;
-}
+std::string stress_path_names() { return joined_names(stress_paths()); }
 
 double path_scale(const ServoSettings& servo) {
   switch (stress_path(servo.path).scale) {

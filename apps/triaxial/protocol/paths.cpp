@@ -1,5 +1,7 @@
 #include "protocol/paths.hpp"
 
+#include "engine/name_table.hpp"
+
 #include <iterator>
 
 namespace sandcell::triaxial {
@@ -21,12 +23,7 @@ constexpr TestPath k_paths[] = {
      "sigma3 = p0, until cyclic.cycles or cyclic.max_strain"},
 };
 
-constexpr bool in_enum_order() {
-  for (std::size_t k = 0; k < std::size(k_paths); ++k)
-    if (static_cast<std::size_t>(k_paths[k].id) != k) return false;
-  return true;
-}
-static_assert(in_enum_order(), "k_paths: one row per ShearPath, in enum order");
+static_assert(in_id_order(k_paths), "k_paths: one row per ShearPath, in enum order");
 
 }  // namespace
 
@@ -34,16 +31,8 @@ std::span<const TestPath> test_paths() { return k_paths; }
 
 const TestPath& test_path(ShearPath path) { return k_paths[static_cast<std::size_t>(path)]; }
 
-const TestPath* find_test_path(std::string_view name) {
-  for (const TestPath& p : k_paths)
-    if (p.name == name) return &p;
-  return nullptr;
-}
+const TestPath* find_test_path(std::string_view name) { return find_named(test_paths(), name); }
 
-std::string test_path_names() {
-  std::string out;
-  for (const TestPath& p : k_paths) out += (out.empty() ? "\"" : " \"") + std::string(p.name) + "\"";
-  return out;
-}
+std::string test_path_names() { return joined_names(test_paths(), " ", "\""); }
 
 }  // namespace sandcell::triaxial
