@@ -25,6 +25,7 @@
 #include <sstream>
 #include <stdexcept>
 #include <string>
+#include <tuple>
 #include <type_traits>
 
 namespace py = pybind11;
@@ -401,7 +402,26 @@ PYBIND11_MODULE(_sandcell, m) {
   m.def("undrained_path", &undrained_path, py::arg("axial_rate"),
         "Constant volume: axis 1 at axial_rate (1/s, compression positive), axes 2 and 3 keep eps_v = 0");
 
-  py::class_<ServoSettings>(m, "ServoSettings", "The periodic servo and its stress path (docs/physics.md section 6)")
+  py::class_<ServoSettings> servo_settings(m, "ServoSettings",
+                                           "The periodic servo and its stress path (docs/physics.md section 6)");
+  // The servo's numbers that must be finite and >= 0, checked as they are set (ServoSettings.validate()
+  // and World check the whole set).
+  for (const auto& [name, member, unit] : {
+           std::tuple{"ramp_time", &ServoSettings::ramp_time, "s (0: the full rate from the start)"},
+           std::tuple{"inertial_number", &ServoSettings::inertial_number, "(0: strain_rate as given)"},
+           std::tuple{"d50", &ServoSettings::d50, "m"},
+           std::tuple{"density", &ServoSettings::density, "kg/m^3"},
+           std::tuple{"gain", &ServoSettings::gain, "1/s"},
+           std::tuple{"integral_time", &ServoSettings::integral_time, "s (0: no integral term)"},
+           std::tuple{"max_rate", &ServoSettings::max_rate, "1/s"},
+           std::tuple{"max_rate_ratio", &ServoSettings::max_rate_ratio, "(0: max_rate alone)"},
+           std::tuple{"integral_strain", &ServoSettings::integral_strain, "(0: integral_time alone)"},
+       }) {
+    const std::string key = std::string("servo.") + name;
+    servo_settings.def_property(name, [member](const ServoSettings& s) { return s.*member; },
+                                checked_setter(member, [key, unit](double v) { non_negative(key, v, unit); }));
+  }
+  servo_settings
       .def(py::init<>())
       .def_readwrite("enabled", &ServoSettings::enabled)
       .def_property(
@@ -413,14 +433,6 @@ PYBIND11_MODULE(_sandcell, m) {
       .def_property(
           "strain_rate", [](const ServoSettings& s) { return s.strain_rate; },
           [](ServoSettings& s, const py::object& v) { s.strain_rate = finite3("servo.strain_rate", v, "(1/s)"); })
-      .def_property("ramp_time", [](const ServoSettings& s) { return s.ramp_time; },
-                    checked_setter(&ServoSettings::ramp_time, [](double v) { non_negative("servo.ramp_time", v, "s (0: the full rate from the start)"); }))
-      .def_property("inertial_number", [](const ServoSettings& s) { return s.inertial_number; },
-                    checked_setter(&ServoSettings::inertial_number, [](double v) { non_negative("servo.inertial_number", v, "(0: strain_rate as given)"); }))
-      .def_property("d50", [](const ServoSettings& s) { return s.d50; },
-                    checked_setter(&ServoSettings::d50, [](double v) { non_negative("servo.d50", v, "m"); }))
-      .def_property("density", [](const ServoSettings& s) { return s.density; },
-                    checked_setter(&ServoSettings::density, [](double v) { non_negative("servo.density", v, "kg/m^3"); }))
       .def_property(
           "target", [](const ServoSettings& s) { return s.target; },
           [](ServoSettings& s, const py::object& v) { s.target = finite3("servo.target", v, "(Pa)"); })
@@ -432,16 +444,6 @@ PYBIND11_MODULE(_sandcell, m) {
                     }))
       .def_property("sigma3", [](const ServoSettings& s) { return s.sigma3; },
                     checked_setter(&ServoSettings::sigma3, [](double v) { finite("servo.sigma3", v, "Pa (compression positive)"); }))
-      .def_property("gain", [](const ServoSettings& s) { return s.gain; },
-                    checked_setter(&ServoSettings::gain, [](double v) { non_negative("servo.gain", v, "1/s"); }))
-      .def_property("integral_time", [](const ServoSettings& s) { return s.integral_time; },
-                    checked_setter(&ServoSettings::integral_time, [](double v) { non_negative("servo.integral_time", v, "s (0: no integral term)"); }))
-      .def_property("max_rate", [](const ServoSettings& s) { return s.max_rate; },
-                    checked_setter(&ServoSettings::max_rate, [](double v) { non_negative("servo.max_rate", v, "1/s"); }))
-      .def_property("max_rate_ratio", [](const ServoSettings& s) { return s.max_rate_ratio; },
-                    checked_setter(&ServoSettings::max_rate_ratio, [](double v) { non_negative("servo.max_rate_ratio", v, "(0: max_rate alone)"); }))
-      .def_property("integral_strain", [](const ServoSettings& s) { return s.integral_strain; },
-                    checked_setter(&ServoSettings::integral_strain, [](double v) { non_negative("servo.integral_strain", v, "(0: integral_time alone)"); }))
       .def_property(
           "interval", [](const ServoSettings& s) { return s.interval; },
           [](ServoSettings& s, int v) {
