@@ -206,20 +206,9 @@ int check_options(const Options& options, std::ostream& err) {
 // The run's configuration (the file named, else the embedded default), parsed and planned.
 // Throws ConfigError, or a file system error on an unreadable path.
 Plan load_plan(const Options& options) {
-  std::string text, source = "<embedded default>";
-  if (options.config_path.empty()) {
-    text = k_default_config;
-  } else {
-    std::ifstream in(options.config_path);
-    if (!in || fs::is_directory(options.config_path))
-      throw ConfigError(options.config_path + ": cannot read the configuration file" +
-                        (fs::is_directory(options.config_path) ? " (a directory)" : ""));
-    std::ostringstream buffer;
-    buffer << in.rdbuf();
-    text = buffer.str();
-    source = options.config_path;
-  }
-  return make_plan(parse_config(text, source), options);
+  return make_plan(options.config_path.empty() ? parse_config(k_default_config, "<embedded default>")
+                                               : load_config(options.config_path),
+                   options);
 }
 
 // --out, else results/<config name> (results/default for the embedded default).

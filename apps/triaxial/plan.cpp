@@ -232,12 +232,6 @@ std::string parse_tasks(const std::vector<std::string>& specs, std::size_t n, st
   return "";
 }
 
-Plan plan_from_file(const std::string& path, const Options& options) {
-  std::ifstream in(path);
-  if (!in || fs::is_directory(path)) throw ConfigError(path + ": cannot read the configuration file");
-  std::ostringstream buffer;
-  buffer << in.rdbuf();
-  return make_plan(parse_config(buffer.str(), path), options);
-}
+Plan plan_from_file(const std::string& path, const Options& options) { return make_plan(load_config(path), options); }
 
 }  // namespace sandcell::triaxial

@@ -12,8 +12,6 @@
 #include <pybind11/pybind11.h>
 #include <pybind11/stl.h>
 
-#include <fstream>
-#include <sstream>
 #include <string>
 
 namespace py = pybind11;
@@ -60,11 +58,9 @@ void bind_protocol(py::module_& m) {
       .def_static(
           "load",
           [](const std::string& path) {
-            std::ifstream in(path);
-            if (!in) throw ConfigError(path + ": cannot read the configuration file");
-            std::ostringstream text;
-            text << in.rdbuf();
-            return protocol_of(text.str(), path);
+            Protocol p = make_protocol(load_config(path));
+            validate_servos(p);
+            return p;
           },
           py::arg("path"), "Reads, validates and derives a config file (as `triaxial CONFIG --check`)")
       .def_static("parse", &protocol_of, py::arg("text"), py::arg("source") = "<string>",

@@ -9,6 +9,8 @@
 #include <toml++/toml.h>
 
 #include <algorithm>
+#include <filesystem>
+#include <fstream>
 #include <cmath>
 #include <map>
 #include <numbers>
@@ -192,6 +194,16 @@ void parse_prepare(const toml::table& root, const std::string& source, PrepareCo
 }
 
 }  // namespace
+
+Config load_config(const std::string& path) {
+  const bool directory = std::filesystem::is_directory(path);
+  std::ifstream in(path);
+  if (!in || directory)
+    throw ConfigError(path + ": cannot read the configuration file" + (directory ? " (a directory)" : ""));
+  std::ostringstream buffer;
+  buffer << in.rdbuf();
+  return parse_config(buffer.str(), path);
+}
 
 Config parse_config(const std::string& text, const std::string& source) {
   Config c;

@@ -121,6 +121,10 @@ extern const char* const k_default_config;
 /// Parses and validates. `source` names the file in messages. Throws ConfigError.
 Config parse_config(const std::string& text, const std::string& source);
 
+/// Reads a config file and parses it (parse_config, the path as its source). Throws ConfigError,
+/// naming the path, when it cannot be read (or is a directory).
+Config load_config(const std::string& path);
+
 /// The keys ("section.key") whose values differ between two valid config texts, a key present in
 /// one only included; keys a resume may change without changing what was computed (`safe`:
 /// output.*, tests.*, shear.max_axial_strain) are left out unless `include_safe`.
