@@ -16,6 +16,7 @@ struct ContactPairs {
   std::vector<Image> image;              // (m,3) -, j is taken at x_j + H n; written by the broadphase
   std::vector<std::uint32_t> i, j;       // (m) -, current array indices of id_i, id_j; broadphase / reorder
   Vec3 reference_length = Vec3::Zero();  // (3) m, cell lengths at the last build (zero: never built)
+  Vec3 reference_tilt = Vec3::Zero();    // (3) m, cell tilts (xy, xz, yz) at the last build
 
   std::size_t size() const { return id_i.size(); }
 };

@@ -66,6 +66,13 @@ std::uint64_t checksum(const State& state, const CheckpointExtra& extra) {
   c.bytes(state.contacts.pairs.reference_length.data(), 3 * sizeof(double));
   for (const Vec3* v : {&state.cell.length, &state.cell.length0, &state.cell.rate, &state.cell.servo_integral})
     c.bytes(v->data(), 3 * sizeof(double));
+  // A cell that can shear: its tilts, reference, flips, shear rate and shear servo too (an
+  // orthorhombic cell's checksum is the one it had before the cell could shear).
+  if (!state.cell.plain() || !state.contacts.pairs.reference_tilt.isZero(0.0)) {
+    for (const Vec3* v : {&state.cell.tilt, &state.cell.tilt0, &state.cell.flip, &state.cell.shear_rate,
+                          &state.cell.shear_integral, &state.contacts.pairs.reference_tilt})
+      c.bytes(v->data(), 3 * sizeof(double));
+  }
   c.bytes(&state.clock.step, sizeof state.clock.step);
   c.bytes(&state.clock.time, sizeof state.clock.time);
   for (const auto& [k, v] : extra.doubles) {
@@ -103,6 +110,8 @@ void check_ranges(const std::filesystem::path& path, const State& state) {
         !std::isfinite(state.particles.radius[k]))
       fail("particle " + std::to_string(k) + ": radius or mass not > 0");
   if (!(state.cell.length.minCoeff() > 0.0) || !state.cell.length.allFinite()) fail("cell lengths not > 0");
+  if (!state.cell.tilt.allFinite() || !state.cell.flip.allFinite() || state.cell.flip != state.cell.flip.array().round().matrix())
+    fail("cell tilts not finite or flips not integers");
 }
 
 // Keys become HDF5 link names, where '/' separates groups and "." is the group itself.
@@ -129,6 +138,7 @@ void write_contents(h5::File& file, const State& state, const CheckpointExtra& e
   contacts.set_value<std::int64_t>("has_rolling", state.contacts.has_rolling ? 1 : 0);
   contacts.set_value<std::int64_t>("has_tangential_radius", state.contacts.has_tangential_radius ? 1 : 0);
   contacts.set_values<double>("reference_length", as_span(state.contacts.pairs.reference_length));
+  contacts.set_values<double>("reference_tilt", as_span(state.contacts.pairs.reference_tilt));
   for_each_contact_field(state.contacts,
                          [&](const FieldInfo& info, const auto& v) { io::write_field(contacts, info, v); });
 
@@ -137,6 +147,11 @@ void write_contents(h5::File& file, const State& state, const CheckpointExtra& e
   cell.set_values<double>("length0", as_span(state.cell.length0));
   cell.set_values<double>("rate", as_span(state.cell.rate));
   cell.set_values<double>("servo_integral", as_span(state.cell.servo_integral));
+  cell.set_values<double>("tilt", as_span(state.cell.tilt));
+  cell.set_values<double>("tilt0", as_span(state.cell.tilt0));
+  cell.set_values<double>("flip", as_span(state.cell.flip));
+  cell.set_values<double>("shear_rate", as_span(state.cell.shear_rate));
+  cell.set_values<double>("shear_integral", as_span(state.cell.shear_integral));
 
   h5::Group clock = root.create_group("clock");
   clock.set_value<std::uint64_t>("step", state.clock.step);
@@ -231,6 +246,9 @@ State read_checkpoint(const std::filesystem::path& path, CheckpointExtra* extra)
     state.contacts.has_tangential_radius = contacts.has_attribute("has_tangential_radius") &&
                                            contacts.get_value<std::int64_t>("has_tangential_radius") != 0;
     state.contacts.pairs.reference_length = to_vec3(contacts, "reference_length");
+    // Checkpoints from before the cell could shear hold an orthorhombic cell: zero tilts.
+    state.contacts.pairs.reference_tilt =
+        contacts.has_attribute("reference_tilt") ? to_vec3(contacts, "reference_tilt") : Vec3::Zero();
     for_each_contact_field(state.contacts,
                            [&](const FieldInfo& info, auto& v) { io::read_field(contacts, info, v, m); });
 
@@ -240,6 +258,12 @@ State read_checkpoint(const std::filesystem::path& path, CheckpointExtra* extra)
     state.cell.rate = to_vec3(cell, "rate");
     // Checkpoints from before the servo had an integral term carry none: zero, as a stage starts.
     state.cell.servo_integral = cell.has_attribute("servo_integral") ? to_vec3(cell, "servo_integral") : Vec3::Zero();
+    const auto optional = [&](const char* key) { return cell.has_attribute(key) ? to_vec3(cell, key) : Vec3::Zero(); };
+    state.cell.tilt = optional("tilt");
+    state.cell.tilt0 = optional("tilt0");
+    state.cell.flip = optional("flip");
+    state.cell.shear_rate = optional("shear_rate");
+    state.cell.shear_integral = optional("shear_integral");
 
     const h5::Group clock = root.open_group("clock");
     state.clock.step = clock.get_value<std::uint64_t>("step");

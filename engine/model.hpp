@@ -69,6 +69,9 @@ enum class StressPath {
   isotropic,        // all three axes to p
   constant_p,       // p and b held
   constant_sigma3,  // sigma3 and b held
+  simple_shear,     // xz strain at shear_strain_rate[1], xx and yy fixed, zz at normal_stress (drained)
+  simple_shear_cv,  // the same at constant volume: zz fixed too
+  rotation,         // principal stress axes rotating in the xz plane at rotation_rate, p, b and q held
   custom,           // ServoSettings::custom decides each axis's control and target at every servo update
 };
 
@@ -84,6 +87,8 @@ struct PathInput {
   Vec3 length0 = Vec3::Ones();      // m, reference lengths (strains and eps_v count from them)
   Vec3 strain = Vec3::Zero();       // -, logarithmic, -ln(L/L0)
   Vec3 strain_rate = Vec3::Zero();  // 1/s, the rates applied until now (-D_kk)
+  Mat3 deformation = Mat3::Identity();    // -, F = H N H0^-1 since the reference (components/cell.hpp)
+  Vec3 shear_strain_rate = Vec3::Zero();  // 1/s, (xy, xz, yz): -L_ab, the shear rates applied until now
 };
 
 /// What a custom path returns, per axis: `strain`, at `value` 1/s (compression positive); `stress`,
@@ -91,9 +96,15 @@ struct PathInput {
 /// (value unused), one common rate of the `volume` axes that brings the cell's volume to the
 /// product of length0 by the next servo update, given the other axes' rates: constant volume,
 /// eps_v = 0, exactly up to rounding (docs/physics.md section 6.1).
+/// The shear components xy, xz, yz (shear_control, shear_value): `strain` at shear_value 1/s, the
+/// engineering rate gamma_dot_ab = -L_ab of the upper triangular velocity gradient (soil convention);
+/// `stress` toward shear_value Pa (S_ab, compression positive), the error normalized by the path's
+/// stress scale. The default, strain at 0, keeps the cell orthorhombic. `volume` is not allowed.
 struct PathTargets {
   std::array<AxisControl, 3> control{AxisControl::strain, AxisControl::strain, AxisControl::strain};
   Vec3 value = Vec3::Zero();
+  std::array<AxisControl, 3> shear_control{AxisControl::strain, AxisControl::strain, AxisControl::strain};
+  Vec3 shear_value = Vec3::Zero();
 };
 
 /// A user-defined path (StressPath::custom). Called by the servo on servo updates only, from the
@@ -131,6 +142,17 @@ struct ServoSettings {
   int interval = 1;                 // steps between stress measurements and servo updates
   bool kinetic_stress = false;      // include the kinetic part sum m v~ (x) v~ / V in the measured stress
   PathFunction custom;              // the path of StressPath::custom (control, strain_rate, target unused)
+  // The shear components xy, xz, yz of the cell (docs/physics.md section 6.2): strain controlled at
+  // shear_strain_rate (engineering, -L_ab, 1/s; scaled like the axes at a set inertial number) or
+  // stress controlled toward shear_target (Pa, S_ab compression positive; `free` = stress toward 0).
+  // The default (strain at 0) is the orthorhombic cell. Used by every built-in path but `rotation`.
+  std::array<AxisControl, 3> shear_control{AxisControl::strain, AxisControl::strain, AxisControl::strain};
+  Vec3 shear_strain_rate = Vec3::Zero();
+  Vec3 shear_target = Vec3::Zero();
+  double normal_stress = 0.0;   // Pa, S_zz of the simple_shear path, > 0
+  double q = 0.0;               // Pa, deviator q of the rotation path, >= 0
+  double rotation_rate = 0.0;   // rad/s, d alpha/dt of the rotation path (alpha: sigma1's angle from x toward z)
+  double rotation_start = 0.0;  // rad, alpha at clock time 0
 };
 
 struct Model {

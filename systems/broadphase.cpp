@@ -31,13 +31,22 @@ bool key_less(ParticleId a_id, const Image& a_img, ParticleId b_id, const Image&
   return a_img < b_img;
 }
 
-// Bins of the current cell: n_k >= 1 bins per axis, each at least `width` wide.
+// Bins of the current cell: n_k >= 1 bins per axis in reduced coordinates, each at least `width`
+// wide measured perpendicular to the faces (a tilted cell: its widths, Cell::widths). A neighbour
+// within the cutoff then differs by at most one bin per axis: |ds_k| = |dual_k . dx| <= cutoff / width_k.
 struct Bins {
   std::array<int, 3> n{};
   Vec3 inv_length = Vec3::Zero();
+  bool tilted = false;
+  Vec3 length = Vec3::Zero(), tilt = Vec3::Zero();  // the basis of a tilted cell
   int index(const std::array<int, 3>& b) const { return (b[2] * n[1] + b[1]) * n[0] + b[0]; }
   std::array<int, 3> of(const Vec3& x) const {
     std::array<int, 3> b{};
+    if (tilted) {
+      const Vec3 s = reduced(x, length, tilt);
+      for (int a = 0; a < 3; ++a) b[a] = std::clamp(static_cast<int>(s[a] * n[a]), 0, n[a] - 1);
+      return b;
+    }
     for (int a = 0; a < 3; ++a) b[a] = std::clamp(static_cast<int>(x[a] * inv_length[a] * n[a]), 0, n[a] - 1);
     return b;
   }
@@ -75,8 +84,9 @@ void for_each_neighbor(const Bins& bins, const std::array<int, 3>& b, const std:
 
 // Why a list cannot be built: a non-finite position or cell, or a cell too narrow for the cutoff
 // (a sphere would meet its own image); empty when it can.
-std::string unbuildable(const std::vector<ParticleId>& id, const std::vector<Vec3>& x, const Vec3& length, double r_max,
+std::string unbuildable(const std::vector<ParticleId>& id, const std::vector<Vec3>& x, const Cell& cell, double r_max,
                         double skin) {
+  const Vec3& length = cell.length;
   // A run gone unstable shows here first as a non-finite position (the rebuild test sends every
   // such step to a build): stop with the particle rather than bin NaNs.
   for (std::size_t k = 0; k < x.size(); ++k)
@@ -86,11 +96,16 @@ std::string unbuildable(const std::vector<ParticleId>& id, const std::vector<Vec
            std::to_string(length[2]) +
            ") m are not finite: the servo went unstable (a stress that is not "
            "finite, or a gain too high for the time step)";
+  if (!cell.tilt.allFinite())
+    return "cell tilts (xy, xz, yz) = (" + std::to_string(cell.tilt[0]) + ", " + std::to_string(cell.tilt[1]) + ", " +
+           std::to_string(cell.tilt[2]) + ") m are not finite: the servo went unstable";
   const double cutoff = 2.0 * r_max + skin;
-  if (!(length.minCoeff() > cutoff)) {
+  const Vec3 width = cell.widths();
+  if (!(width.minCoeff() > cutoff)) {
     int axis = 0;
-    length.minCoeff(&axis);
-    return "cell width L" + std::to_string(axis + 1) + " = " + std::to_string(length[axis]) +
+    width.minCoeff(&axis);
+    return "cell width " + std::string(cell.tilt.isZero(0.0) ? "L" : "(between faces) w") + std::to_string(axis + 1) +
+           " = " + std::to_string(width[axis]) +
            " m is not larger than 2 r_max + skin = " + std::to_string(cutoff) + " m (r_max = " + std::to_string(r_max) +
            " m, skin = " + std::to_string(skin) + " m): a sphere would meet its own periodic image";
   }
@@ -99,15 +114,20 @@ std::string unbuildable(const std::vector<ParticleId>& id, const std::vector<Vec
 
 // Bins the particles (counting sort, stable in particle index: deterministic): bins of width at
 // least `cutoff` in reduced coordinates, their CSR in bp.bin_start / bp.bin_particle.
-Bins bin_particles(const std::vector<Vec3>& x, const Vec3& length, double cutoff, BroadphaseScratch& bp) {
+Bins bin_particles(const std::vector<Vec3>& x, const Cell& cell, double cutoff, BroadphaseScratch& bp) {
   const std::size_t n = x.size();
+  const Vec3& length = cell.length;
+  const Vec3 width = cell.widths();
   Bins bins;
   int n_bins = 1;
   for (int a = 0; a < 3; ++a) {
-    bins.n[a] = std::max(1, static_cast<int>(std::floor(length[a] / cutoff)));
+    bins.n[a] = std::max(1, static_cast<int>(std::floor(width[a] / cutoff)));
     n_bins *= bins.n[a];
   }
   bins.inv_length = length.cwiseInverse();
+  bins.tilted = !cell.tilt.isZero(0.0);
+  bins.length = length;
+  bins.tilt = cell.tilt;
   bp.bin_start.assign(n_bins + 1, 0);
   bp.particle_bin.resize(n);
   bp.bin_particle.resize(n);
@@ -130,7 +150,7 @@ struct Candidates {
   const std::vector<Vec3>& x;
   const std::vector<double>& radius;
   const std::vector<ParticleId>& id;
-  Vec3 length;
+  Cell cell;
   double skin;
 
   template <class Emit>
@@ -141,7 +161,7 @@ struct Candidates {
     const ParticleId idi = id[i];
     for_each_neighbor(bins, b, bp.bin_start, bp.bin_particle, [&](std::uint32_t j, const Image& img) {
       if (id[j] <= idi) return;
-      const Vec3 r = xi - (x[j] + image_offset(img, length));
+      const Vec3 r = xi - (x[j] + (bins.tilted ? image_offset(img, cell) : image_offset(img, cell.length)));
       const double cut = ri + radius[j];
       if (r.squaredNorm() < cut * cut) emit(j, img);
     });
@@ -187,10 +207,49 @@ struct Histories {
   std::size_t n_scalar = 0;
 };
 
+// A flip of the lattice basis at this build (H' = H E, E unit upper triangular integer): its
+// inverse maps an old image to the new basis, n' = E^-1 n (identity when nothing flipped).
+struct Flip {
+  std::array<int, 3> inverse{};  // (E^-1)_xy, (E^-1)_xz, (E^-1)_yz
+  std::array<int, 3> map(const Image& n) const {
+    return {n[0] + inverse[0] * n[1] + inverse[1] * n[2], n[1] + inverse[2] * n[2], int(n[2])};
+  }
+};
+
+// Reduces the tilts of the lattice basis to |yz| <= L2/2, then |xz| <= L1/2, |xy| <= L1/2
+// (c <- c - k b, c <- c - k a, b <- b - k a: LAMMPS's box flips, each an exact change of basis of the
+// same lattice), counting them in cell.flip (the deformation H N stays continuous: N <- E^-1 N).
+Flip reduce_basis(Cell& cell) {
+  Flip f;
+  if (cell.tilt.isZero(0.0)) return f;
+  const auto steps = [](double t, double l) { return std::abs(t) > 0.5 * l ? std::round(t / l) : 0.0; };
+  Vec3& t = cell.tilt;
+  const Vec3& l = cell.length;
+  const double k_yz = steps(t[2], l[1]);
+  t[1] -= k_yz * t[0];
+  t[2] -= k_yz * l[1];
+  const double k_xz = steps(t[1], l[0]);
+  t[1] -= k_xz * l[0];
+  const double k_xy = steps(t[0], l[0]);
+  t[0] -= k_xy * l[0];
+  if (k_yz == 0.0 && k_xz == 0.0 && k_xy == 0.0) return f;
+  // E = E_yz E_xz E_xy with E_yz = I - k_yz e1 e2^T, E_xz = I - k_xz e0 e2^T, E_xy = I - k_xy e0 e1^T;
+  // E^-1 = E_xy^-1 E_xz^-1 E_yz^-1, each E^-1 = I + k e e^T.
+  Mat3 inv_yz = Mat3::Identity(), inv_xz = Mat3::Identity(), inv_xy = Mat3::Identity();
+  inv_yz(1, 2) = k_yz;
+  inv_xz(0, 2) = k_xz;
+  inv_xy(0, 1) = k_xy;
+  const Mat3 e_inv = inv_xy * inv_xz * inv_yz;
+  f.inverse = {int(e_inv(0, 1)), int(e_inv(0, 2)), int(e_inv(1, 2))};
+  const Mat3 n = e_inv * cell.flips();  // exact: small integers
+  cell.flip = Vec3(n(0, 1), n(0, 2), n(1, 2));
+  return f;
+}
+
 // Pass 2: fills each particle's slots of the new list (bp.next_pairs, bp.next_history), sorts them
 // canonically by (id_j, image) and carries each pair's histories from the old list by key.
 void fill_pairs(const Candidates& visit, std::size_t m, const ContactPairs& pairs, const Histories& hist,
-                BroadphaseScratch& bp, Executor& exec) {
+                const Flip& flip, BroadphaseScratch& bp, Executor& exec) {
   const auto& history = hist.vec;
   const std::size_t n_history = hist.n_vec, n_scalar = hist.n_scalar;
   const std::size_t n = visit.x.size();
@@ -227,13 +286,15 @@ void fill_pairs(const Candidates& visit, std::size_t m, const ContactPairs& pair
         next.id_i[c] = id[i];
         next.i[c] = static_cast<std::uint32_t>(i);
         // History: the same contact (id_i, id_j, image before the wrap) in the old list of i, if
-        // any. With x' = x - s L, r = x_i - x_j - n L = x_i' - x_j' - (n - s_i + s_j) L.
+        // any. With x' = x - s L, r = x_i - x_j - n L = x_i' - x_j' - (n - s_i + s_j) L. After a
+        // flip (H' = H E) the old image is first expressed in the new basis: E^-1 n.
         for (std::size_t h = 0; h < n_history; ++h) bp.next_history[h][c].setZero();
         for (std::size_t h = 0; h < n_scalar; ++h) bp.next_scalar_history[h][c] = 0.0;
         const std::array<int, 3>& s_i = bp.shift[i];
         const std::array<int, 3>& s_j = bp.shift[next.j[c]];
         const Image& img = next.image[c];
-        const auto same_contact = [&](const Image& old) {
+        const auto same_contact = [&](const Image& old_image) {
+          const std::array<int, 3> old = flip.map(old_image);
           return old[0] - s_i[0] + s_j[0] == img[0] && old[1] - s_i[1] + s_j[1] == img[1] &&
                  old[2] - s_i[2] + s_j[2] == img[2];
         };
@@ -255,7 +316,7 @@ void build_neighbor_list(const Model& model, State& state, Scratch& scratch, Exe
   auto& position = state.write<Component::particle_position>();
   const auto& x = position;
   const auto& radius = state.read<Component::particle_radius>();
-  const Cell& cell = state.read<Component::cell>();
+  Cell& cell = state.write<Component::cell>();
   ContactPairs& pairs = state.write<Component::contact_pairs>();
   // The per-contact histories the scene allocates, from the field registry: carried by key.
   Histories hist;
@@ -274,7 +335,9 @@ void build_neighbor_list(const Model& model, State& state, Scratch& scratch, Exe
   const double skin = model.contact.skin;
   const double r_max = n == 0 ? 0.0 : *std::max_element(radius.begin(), radius.end());
   const Vec3 length = cell.length;
-  if (std::string why = unbuildable(id, x, length, r_max, skin); !why.empty()) {
+  // A flip first (a tilted cell), then the check of the reduced basis's widths.
+  const Flip flip = reduce_basis(cell);
+  if (std::string why = unbuildable(id, x, cell, r_max, skin); !why.empty()) {
     scratch.error = std::move(why);
     return;
   }
@@ -284,13 +347,13 @@ void build_neighbor_list(const Model& model, State& state, Scratch& scratch, Exe
   // pairs depend on it); a new list is made from wrapped positions. The shifts are kept: a pair
   // whose sphere was wrapped keeps its contact under another image (old image - s_i + s_j).
   bp.shift.resize(n);
-  wrap_positions(position.data(), length, 0, n, bp.shift.data());
+  wrap_positions(position.data(), cell, 0, n, bp.shift.data());
 
-  const Bins bins = bin_particles(x, length, cutoff, bp);
-  const Candidates visit{bins, bp, x, radius, id, length, skin};
+  const Bins bins = bin_particles(x, cell, cutoff, bp);
+  const Candidates visit{bins, bp, x, radius, id, cell, skin};
   const std::size_t m = count_pairs(visit, n, bp, exec);
   group_old_pairs(pairs, n, bp);
-  fill_pairs(visit, m, pairs, hist, bp, exec);
+  fill_pairs(visit, m, pairs, hist, flip, bp, exec);
 
   ContactPairs& next = bp.next_pairs;
   std::swap(pairs.id_i, next.id_i);
@@ -301,6 +364,7 @@ void build_neighbor_list(const Model& model, State& state, Scratch& scratch, Exe
   for (std::size_t h = 0; h < hist.n_vec; ++h) std::swap(*hist.vec[h], bp.next_history[h]);
   for (std::size_t h = 0; h < hist.n_scalar; ++h) std::swap(*hist.scalar[h], bp.next_scalar_history[h]);
   pairs.reference_length = length;
+  pairs.reference_tilt = cell.tilt;
   reference.assign(x.begin(), x.end());
 
   rebuild_gather_index(pairs, n, gather);
@@ -379,9 +443,14 @@ void Broadphase::run(const Model& model, State& state, Scratch& scratch, Executo
     const Vec3 length = cell.length;
     const Vec3 inv_length = length.cwiseInverse();
     const Vec3 inv_ref = pairs.reference_length.cwiseInverse();
+    // A tilted cell (now or at the build): reduced coordinates of its upper triangular basis.
+    const bool tilted = !cell.tilt.isZero(0.0) || !pairs.reference_tilt.isZero(0.0);
+    const Vec3 tilt = cell.tilt, ref_tilt = pairs.reference_tilt, ref_length = pairs.reference_length;
     // Non-affine displacement since the build: the change of reduced coordinates scaled by the
     // current lengths (positions are continuous between builds: no wrap to undo).
     const auto displacement = [&](std::size_t k) {
+      if (tilted)
+        return Vec3(unreduced(reduced(x[k], length, tilt) - reduced(reference[k], ref_length, ref_tilt), length, tilt));
       return Vec3((x[k].cwiseProduct(inv_length) - reference[k].cwiseProduct(inv_ref)).cwiseProduct(length));
     };
     // Chunks of the particle passes' size: with 4096, dense-20k's 20,000 particles made 5 chunks,
@@ -398,7 +467,11 @@ void Broadphase::run(const Model& model, State& state, Scratch& scratch, Executo
           return worst;
         },
         [](double a, double b) { return std::max(a, b); });
-    const double stretch = (length.cwiseProduct(inv_ref) - Vec3::Ones()).cwiseAbs().maxCoeff();
+    // The affine change of a branch vector r since the build, |(H H_ref^-1 - I) r|, at most the
+    // largest |L/L_ref - 1| times |r| for an orthorhombic cell, the Frobenius norm for a tilted one.
+    const double stretch =
+        tilted ? (cell.h() * Cell::upper(ref_length, ref_tilt).inverse() - Mat3::Identity()).norm()
+               : (length.cwiseProduct(inv_ref) - Vec3::Ones()).cwiseAbs().maxCoeff();
     rebuild = !(2.0 * std::sqrt(d2) + stretch * bp.cutoff <= model.contact.skin);
     // The last step passed the test, so every particle had moved at most skin/2 since the build:
     // beyond skin/2 + r_min now, one moved farther than the smallest radius in this one step and

@@ -64,10 +64,10 @@ constexpr ComponentMask contact_history_mask() {
 struct Broadphase {
   static constexpr std::string_view name = "broadphase";
   static constexpr ComponentMask reads =
-      mask_of({Component::particle_id, Component::particle_radius, Component::particle_mass, Component::cell});
+      mask_of({Component::particle_id, Component::particle_radius, Component::particle_mass});
   static constexpr ComponentMask writes =
       mask_of({Component::particle_position, Component::contact_pairs, Component::particle_reference,
-               Component::gather_index, Component::pair_constants}) |
+               Component::gather_index, Component::pair_constants, Component::cell}) |
       contact_history_mask();
   static void run(const Model& model, State& state, Scratch& scratch, Executor& exec);
   /// The first list (build_neighbor_list).

@@ -110,6 +110,8 @@ struct PassData {
   std::uint8_t* __restrict sorted;
   std::array<Vec3, 27> shift;  // H n of the 27 images, by image code (PairConstants)
   Vec3 rate;                   // 1/s, the cell's strain rate (affine velocity D r)
+  Vec3 shear;                  // 1/s, (L_xy, L_xz, L_yz): a shearing cell's affine velocity adds them
+  bool sheared;                // shear is nonzero
   double dt;                   // s
   double v_char;               // m/s, for the laws that have one
   double* __restrict hist_a = nullptr;  // m, the contact radius at the last step (laws with radius_history)
@@ -180,6 +182,8 @@ PassData bind_pass(const Model& model, State& state, Scratch& scratch) {
              hint.sorted.data(),
              {},
              cell.rate,
+             cell.shear_rate,
+             !cell.shear_rate.isZero(0.0),
              model.dt,
              characteristic_velocity(model.contact)};
   d.gx = d.x;
@@ -189,11 +193,11 @@ PassData bind_pass(const Model& model, State& state, Scratch& scratch) {
     state.contacts.tangential_radius.resize(m);
     d.hist_a = state.contacts.tangential_radius.data();
   }
-  // The product img * L exactly as per pair.
+  // H n exactly as per pair (cell.hpp: bitwise img * L for an orthorhombic cell).
   for (int c = 0; c < 27; ++c) {
     const Image img{static_cast<std::int8_t>(c % 3 - 1), static_cast<std::int8_t>(c / 3 % 3 - 1),
                     static_cast<std::int8_t>(c / 9 - 1)};
-    d.shift[c] = Vec3(img[0] * cell.length[0], img[1] * cell.length[1], img[2] * cell.length[2]);
+    d.shift[c] = image_offset(img, cell);
   }
   return d;
 }
@@ -314,7 +318,10 @@ struct ContactKernel {
     c.c_i = d.r_i[k] - 0.5 * c.overlap;
     c.c_j = d.r_j[k] - 0.5 * c.overlap;
     c.v_rel = d.v[i] - of_j<G>(d.v, d.gv, jh);
-    if constexpr (Affine) c.v_rel += d.rate.cwiseProduct(r);
+    if constexpr (Affine) {
+      c.v_rel += d.rate.cwiseProduct(r);
+      if (d.sheared) c.v_rel += Vec3(d.shear[0] * r[1] + d.shear[1] * r[2], d.shear[2] * r[2], 0.0);
+    }
     c.w_i = d.w[i];
     c.w_j = of_j<G>(d.w, d.gw, jh);
     const PairMaterial& mat = d.n_mat == 1 ? d.pair_mat[0] : *blk.mat[t];
@@ -476,6 +483,10 @@ struct ContactKernel {
       vx += d.rate[0] * rx;
       vy += d.rate[1] * ry;
       vz += d.rate[2] * rz;
+      if (d.sheared) {  // the off-diagonal part of L r (a shearing cell)
+        vx += d.shear[0] * ry + d.shear[1] * rz;
+        vy += d.shear[2] * rz;
+      }
     }
     const V wix = comp(wi, 0), wiy = comp(wi, 1), wiz = comp(wi, 2);
     const V wjx = comp(wj, 0), wjy = comp(wj, 1), wjz = comp(wj, 2);
@@ -852,7 +863,7 @@ double contact_elastic_energy(const Model& model, const State& state) {
     const Contacts& c = state.contacts;
     for (std::size_t k = 0; k < c.pairs.size(); ++k) {
       const std::uint32_t i = c.pairs.i[k], j = c.pairs.j[k];
-      const Vec3 r = p.position[i] - p.position[j] - image_offset(c.pairs.image[k], state.cell.length);
+      const Vec3 r = p.position[i] - p.position[j] - image_offset(c.pairs.image[k], state.cell);
       const double reach = p.radius[i] + p.radius[j];
       const double d2 = r.squaredNorm();
       if (!(d2 < reach * reach)) continue;

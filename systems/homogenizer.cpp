@@ -34,7 +34,7 @@ void Homogenizer::run(const Model& model, State& state, Scratch& scratch, Execut
   const ContactPairs& pairs = state.read<Component::contact_pairs>();
   const ContactForces& forces = state.read<Component::contact_forces>();
   const Cell& cell = state.read<Component::cell>();
-  Mat3 sum = contact_stress_sum(pairs, forces.force, x, cell.length, exec);
+  Mat3 sum = contact_stress_sum(pairs, forces.force, x, cell, exec);
   if (model.servo.kinetic_stress)
     sum += kinetic_sum(state.read<Component::particle_velocity>(), state.read<Component::particle_mass>(), exec);
   MeasuredStress& out = scratch.write<MeasuredStress>();
@@ -92,7 +92,7 @@ Measures measure(const Model& model, const State& state, Executor& exec, const M
   const double volume = cell.volume();
 
   const std::size_t n_pairs = std::min(c.pairs.size(), c.forces.force.size());
-  const Mat3 sum = contact_stress_sum(c.pairs, c.forces.force, p.position, cell.length, exec);
+  const Mat3 sum = contact_stress_sum(c.pairs, c.forces.force, p.position, cell, exec);
   m.contact_stress = 0.5 * (sum + sum.transpose()) / volume;
   m.stress = m.contact_stress;
   if (options.kinetic_stress) m.stress += kinetic_sum(p.velocity, p.mass, exec) / volume;
@@ -121,7 +121,7 @@ Measures measure(const Model& model, const State& state, Executor& exec, const M
   Mat3 fabric = Mat3::Zero();
   for (std::size_t k = 0; k < n_pairs; ++k) {
     const std::uint32_t i = c.pairs.i[k], j = c.pairs.j[k];
-    const Vec3 r = p.position[i] - p.position[j] - image_offset(c.pairs.image[k], cell.length);
+    const Vec3 r = p.position[i] - p.position[j] - image_offset(c.pairs.image[k], cell);
     const double reach = p.radius[i] + p.radius[j];
     const double d2 = r.squaredNorm();
     if (!(d2 < reach * reach)) continue;

@@ -17,8 +17,25 @@ void validate(const ServoSettings& servo) {
   };
   // The gain and the rate cap drive the stress-controlled axes only: a path that controls none
   // (every axis by strain) needs neither; a custom path may answer `stress` at any update.
-  const bool any_stress = servo.control[0] == AxisControl::stress || servo.control[1] == AxisControl::stress ||
-                          servo.control[2] == AxisControl::stress;
+  const StressPathSpec& spec = stress_path(servo.path);
+  bool any_shear_stress = false;
+  if (spec.shear_settings)
+    for (int k = 0; k < 3; ++k) {
+      static constexpr const char* names[3] = {"xy", "xz", "yz"};
+      if (servo.shear_control[k] == AxisControl::volume)
+        throw std::invalid_argument(std::string("servo.shear_control[") + names[k] +
+                                    "] = volume: a shear component is strain or stress controlled");
+      if (!std::isfinite(servo.shear_strain_rate[k]))
+        fail(std::string("shear_strain_rate[") + names[k] + "]", servo.shear_strain_rate[k], "must be finite (1/s)");
+      if (!std::isfinite(servo.shear_target[k]))
+        fail(std::string("shear_target[") + names[k] + "]", servo.shear_target[k], "must be finite (Pa)");
+      any_shear_stress = any_shear_stress || servo.shear_control[k] == AxisControl::stress;
+    }
+  const bool diagonal_stress = spec.answer == nullptr && (servo.control[0] == AxisControl::stress ||
+                                                          servo.control[1] == AxisControl::stress ||
+                                                          servo.control[2] == AxisControl::stress);
+  const bool any_stress = diagonal_stress || any_shear_stress || servo.path == StressPath::simple_shear ||
+                          servo.path == StressPath::rotation;
   if (any_stress || servo.path == StressPath::custom) {
     if (!(servo.gain > 0.0) || !std::isfinite(servo.gain)) fail("gain", servo.gain, "must be a finite value > 0 1/s");
     if (!(servo.max_rate > 0.0) || !std::isfinite(servo.max_rate))
@@ -43,7 +60,19 @@ void validate(const ServoSettings& servo) {
     if (!(servo.density > 0.0) || !std::isfinite(servo.density))
       fail("density", servo.density, "must be > 0 kg/m^3 with inertial_number > 0");
   }
-  const StressPathSpec& spec = stress_path(servo.path);
+  if (servo.path == StressPath::simple_shear && !(servo.normal_stress > 0.0 && std::isfinite(servo.normal_stress)))
+    fail("normal_stress", servo.normal_stress, "must be a finite value > 0 Pa (compression positive) on simple_shear");
+  if (servo.path == StressPath::rotation) {
+    if (!(servo.p > 0.0) || !std::isfinite(servo.p)) fail("p", servo.p, "must be a finite value > 0 Pa");
+    if (!std::isfinite(servo.rotation_rate)) fail("rotation_rate", servo.rotation_rate, "must be finite (rad/s)");
+    if (!std::isfinite(servo.rotation_start)) fail("rotation_start", servo.rotation_start, "must be finite (rad)");
+    const double s3 = rotated_stress(servo.p, servo.b, servo.q, 0.0)(2, 2);
+    if (!(servo.q >= 0.0) || !(s3 > 0.0))
+      fail("q", servo.q,
+           "must be >= 0 Pa and leave sigma3 = p - q (1 + b) / (3 sqrt(1 - b + b^2)) > 0 (no tension), here " +
+               std::to_string(s3) + " Pa");
+  }
+  if (spec.answer != nullptr) return;  // the path's answer decides the axes' controls
   if (servo.path == StressPath::custom) {
     if (!servo.custom)
       throw std::invalid_argument(
@@ -56,7 +85,7 @@ void validate(const ServoSettings& servo) {
       throw std::invalid_argument(
           "servo.control[" + std::to_string(k) +
           "] = volume: only a custom path's answer may hold the volume; allowed here: strain, stress");
-  if (!any_stress) return;
+  if (!diagonal_stress) return;
   switch (spec.scale) {
     case PathScale::p:
       if (!(servo.p > 0.0)) fail("p", servo.p, "must be > 0 Pa (compression positive)");
@@ -69,6 +98,7 @@ void validate(const ServoSettings& servo) {
         if (servo.control[k] == AxisControl::stress && !(servo.target[k] > 0.0))
           fail("target[" + std::to_string(k) + "]", servo.target[k], "must be > 0 Pa on a stress-controlled axis");
       break;
+    case PathScale::normal:
     case PathScale::none: break;
   }
   if (spec.axis1_by_strain && servo.control[0] != AxisControl::strain)
@@ -114,10 +144,14 @@ struct Limits {
   double cap;
   double integral_time;
 };
-Limits limits(const ServoSettings& servo, const Vec3& rate, const std::array<AxisControl, 3>& control) {
+Limits limits(const ServoSettings& servo, const Vec3& rate, const std::array<AxisControl, 3>& control,
+              const Vec3& shear_rate = Vec3::Zero(), const std::array<AxisControl, 3>* shear_control = nullptr) {
   double fastest = 0.0;
   for (int k = 0; k < 3; ++k)
     if (control[k] == AxisControl::strain) fastest = std::max(fastest, std::abs(rate[k]));
+  if (shear_control != nullptr)  // a strain-controlled shear component (simple shear): its engineering rate
+    for (int k = 0; k < 3; ++k)
+      if ((*shear_control)[k] == AxisControl::strain) fastest = std::max(fastest, std::abs(shear_rate[k]));
   Limits l{servo.max_rate, servo.integral_time};
   if (servo.max_rate_ratio > 0.0) l.cap = std::max(l.cap, servo.max_rate_ratio * fastest);
   if (servo.integral_strain > 0.0 && servo.integral_time > 0.0 && fastest > 0.0)
@@ -127,6 +161,14 @@ Limits limits(const ServoSettings& servo, const Vec3& rate, const std::array<Axi
 }  // namespace
 
 Vec3 servo_strain_rates(const ServoSettings& servo, const Vec3& sigma, Vec3* integral, double interval, double time) {
+  Mat3 stress = Mat3::Zero();
+  stress.diagonal() = sigma;
+  return servo_rates(servo, stress, integral, interval, time).axial;
+}
+
+CellRates servo_rates(const ServoSettings& servo, const Mat3& stress, Vec3* integral, double interval, double time,
+                      Vec3* shear_integral) {
+  const Vec3 sigma = stress.diagonal();
   const Vec3 target = path_targets(servo, sigma[0]);
   // Errors are normalized by |sigma*_k| (docs/physics.md section 6), floored at a thousandth of the
   // path's own stress scale, so a target passing through zero (constant p at eta near 3) cannot
@@ -138,23 +180,39 @@ Vec3 servo_strain_rates(const ServoSettings& servo, const Vec3& sigma, Vec3* int
       servo.inertial_number > 0.0
           ? servo.inertial_number * std::sqrt(std::max(sigma.mean(), floor) / servo.density) / servo.d50
           : 1.0;
+  const auto ramped = [&](double set) {
+    const double full = set * scale;
+    return servo.ramp_time > 0.0 && time < servo.ramp_time ? full * (time / servo.ramp_time) : full;
+  };
   Vec3 rate = Vec3::Zero();
   for (int k = 0; k < 3; ++k) {
     if (servo.control[k] != AxisControl::strain) continue;
-    const double full = servo.strain_rate[k] * scale;
-    rate[k] = servo.ramp_time > 0.0 && time < servo.ramp_time ? full * (time / servo.ramp_time) : full;
+    rate[k] = ramped(servo.strain_rate[k]);
   }
-  const Limits l = limits(servo, rate, servo.control);
+  Vec3 shear = Vec3::Zero();
+  for (int k = 0; k < 3; ++k)
+    if (servo.shear_control[k] == AxisControl::strain && servo.shear_strain_rate[k] != 0.0)
+      shear[k] = ramped(servo.shear_strain_rate[k]);
+  const Limits l = limits(servo, rate, servo.control, shear, &servo.shear_control);
   for (int k = 0; k < 3; ++k) {
     if (servo.control[k] == AxisControl::strain) continue;
     const double error = (target[k] - sigma[k]) / std::max(std::abs(target[k]), floor);
     rate[k] = pi_rate(servo, error, integral != nullptr ? &(*integral)[k] : nullptr, interval, l.cap, l.integral_time);
   }
-  return rate;
+  // Shear stresses: errors relative to the path's stress scale (a shear target is often zero).
+  const double shear_scale = std::max({path_scale(servo), std::abs(sigma.mean()), 1e-300});
+  for (int k = 0; k < 3; ++k) {
+    if (servo.shear_control[k] != AxisControl::stress) continue;
+    static constexpr int row[3] = {0, 0, 1}, col[3] = {1, 2, 2};
+    const double error = (servo.shear_target[k] - stress(row[k], col[k])) / shear_scale;
+    shear[k] = pi_rate(servo, error, shear_integral != nullptr ? &(*shear_integral)[k] : nullptr, interval, l.cap,
+                       l.integral_time);
+  }
+  return {rate, shear};
 }
 
 Vec3 custom_strain_rates(const ServoSettings& servo, const PathTargets& targets, const PathInput& input,
-                         Vec3* integral) {
+                         Vec3* integral, Vec3* shear_out, Vec3* shear_integral) {
   const Vec3 sigma = input.stress.diagonal();
   double scale = std::abs(sigma.mean());
   int volume_axes = 0;
@@ -177,12 +235,33 @@ Vec3 custom_strain_rates(const ServoSettings& servo, const PathTargets& targets,
   Vec3 rate = Vec3::Zero();
   for (int k = 0; k < 3; ++k)
     if (targets.control[k] == AxisControl::strain) rate[k] = targets.value[k];
-  const Limits l = limits(servo, rate, targets.control);
+  Vec3 shear = Vec3::Zero();
+  static constexpr const char* shear_names[3] = {"xy", "xz", "yz"};
+  for (int k = 0; k < 3; ++k) {
+    if (targets.shear_control[k] == AxisControl::volume)
+      throw std::invalid_argument(std::string("servo.custom returned shear_control[") + shear_names[k] +
+                                  "] = volume: a shear component is strain or stress controlled");
+    if (!std::isfinite(targets.shear_value[k]))
+      throw std::invalid_argument(std::string("servo.custom returned shear_value[") + shear_names[k] +
+                                  "] = " + std::to_string(targets.shear_value[k]) + ": must be finite");
+    if (targets.shear_control[k] == AxisControl::strain) shear[k] = targets.shear_value[k];
+  }
+  const Limits l = limits(servo, rate, targets.control, shear, &targets.shear_control);
   for (int k = 0; k < 3; ++k) {
     if (targets.control[k] != AxisControl::stress) continue;
     const double error = (targets.value[k] - sigma[k]) / std::max(std::abs(targets.value[k]), floor);
     rate[k] = pi_rate(servo, error, integral != nullptr ? &(*integral)[k] : nullptr, interval, l.cap, l.integral_time);
   }
+  // Shear stresses: errors relative to the stress scale of the answer (a shear target is often zero).
+  const double shear_scale = std::max(scale, 1e-300);
+  for (int k = 0; k < 3; ++k) {
+    if (targets.shear_control[k] != AxisControl::stress) continue;
+    static constexpr int row[3] = {0, 0, 1}, col[3] = {1, 2, 2};
+    const double error = (targets.shear_value[k] - input.stress(row[k], col[k])) / shear_scale;
+    shear[k] = pi_rate(servo, error, shear_integral != nullptr ? &(*shear_integral)[k] : nullptr, interval, l.cap,
+                       l.integral_time);
+  }
+  if (shear_out != nullptr) *shear_out = shear;
   if (volume_axes == 0) return rate;
   // L <- L (1 + D dt) each step (integrate_initial), D = -rate: after n steps the volume is
   // V prod_k (1 + D_k dt)^n. The volume axes share the D that makes it V0 = prod L0:
@@ -215,6 +294,8 @@ PathInput path_input(const Model& model, const Mat3& stress, const Cell& cell, c
   in.length0 = cell.length0;
   for (int k = 0; k < 3; ++k) in.strain[k] = -std::log(cell.length[k] / cell.length0[k]);
   in.strain_rate = -cell.rate;
+  in.deformation = cell.deformation();
+  in.shear_strain_rate = Vec3::Zero() - cell.shear_rate;
   return in;
 }
 
@@ -307,14 +388,19 @@ void Servo::run(const Model& model, State& state, Scratch& scratch, Executor&) {
   if (!servo_due(model.servo, state.clock.step)) return;
   const MeasuredStress& measured = scratch.read<MeasuredStress>();
   Cell& cell = state.write<Component::cell>();
-  if (model.servo.path == StressPath::custom) {
+  const StressPathSpec& spec = stress_path(model.servo.path);
+  if (model.servo.path == StressPath::custom || spec.answer != nullptr) {
     const PathInput input = path_input(model, measured.stress, cell, state.clock);
-    cell.rate = -custom_strain_rates(model.servo, model.servo.custom(input), input, &cell.servo_integral);
+    const PathTargets targets = spec.answer ? spec.answer(model.servo, input) : model.servo.custom(input);
+    Vec3 shear = Vec3::Zero();
+    cell.rate = -custom_strain_rates(model.servo, targets, input, &cell.servo_integral, &shear, &cell.shear_integral);
+    cell.shear_rate = Vec3::Zero() - shear;  // L_ab = -gamma_dot_ab (0 - 0 = +0: a fixed cell stays orthorhombic)
     return;
   }
-  const Vec3 rate = servo_strain_rates(model.servo, measured.stress.diagonal(), &cell.servo_integral,
-                                       model.dt * model.servo.interval, state.clock.time);
-  cell.rate = -rate;  // D_kk is tension positive
+  const CellRates rates = servo_rates(model.servo, measured.stress, &cell.servo_integral,
+                                      model.dt * model.servo.interval, state.clock.time, &cell.shear_integral);
+  cell.rate = -rates.axial;  // D_kk is tension positive
+  cell.shear_rate = Vec3::Zero() - rates.shear;
 }
 
 }  // namespace sandcell

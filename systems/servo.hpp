@@ -50,6 +50,21 @@ Vec3 path_targets(const ServoSettings& servo, double sigma1);
 Vec3 servo_strain_rates(const ServoSettings& servo, const Vec3& sigma, Vec3* integral = nullptr, double interval = 0.0,
                         double time = 0.0);
 
+/// The servo's rates of the six components, soil convention: axial eps_dot_k = -L_kk and the
+/// engineering shear rates gamma_dot = -(L_xy, L_xz, L_yz) (docs/physics.md section 6.2).
+struct CellRates {
+  Vec3 axial = Vec3::Zero();
+  Vec3 shear = Vec3::Zero();
+};
+
+/// servo_strain_rates for the whole measured stress tensor: the axes as there; the shear components
+/// by servo.shear_control: strain at shear_strain_rate (scaled and ramped as the axes), stress by
+/// the same PI law toward shear_target with the error (S*_ab - S_ab) / max(path scale, |p|) and its
+/// integral in `shear_integral`. The cap and the integral time count strain-controlled shear rates
+/// among the strain-controlled axes.
+CellRates servo_rates(const ServoSettings& servo, const Mat3& stress, Vec3* integral = nullptr, double interval = 0.0,
+                      double time = 0.0, Vec3* shear_integral = nullptr);
+
 /// Cell strain rates (compression positive, 1/s) of a custom path's answer (StressPath::custom,
 /// docs/physics.md section 6.1): strain axes at their value; stress axes by the same PI law as the
 /// built-in paths, the error normalized by max(|sigma*_k|, 1e-3 max(|p|, |sigma*|)); the `volume`
@@ -57,8 +72,11 @@ Vec3 servo_strain_rates(const ServoSettings& servo, const Vec3& sigma, Vec3* int
 /// input.interval steps of L <- L (1 + D dt). Throws std::invalid_argument when the answer has a
 /// non-finite value on a strain or stress axis, or cannot hold the volume (the other axes' rates
 /// over one update would shrink a length to zero).
+/// The shear components of the answer (PathTargets::shear_control) go to `shear_out` (engineering
+/// rates, -L_ab): strain at their value, stress by the PI law (integral in `shear_integral`) with
+/// the error normalized by the answer's stress scale, max(|p|, |stress targets|).
 Vec3 custom_strain_rates(const ServoSettings& servo, const PathTargets& targets, const PathInput& input,
-                         Vec3* integral = nullptr);
+                         Vec3* integral = nullptr, Vec3* shear_out = nullptr, Vec3* shear_integral = nullptr);
 
 /// The input a custom path gets from a measured stress and the cell (what Servo::run passes).
 PathInput path_input(const Model& model, const Mat3& stress, const Cell& cell, const Clock& clock);

@@ -10,7 +10,7 @@ namespace sandcell {
 /// sum_c f_c (x) r_c over the pair list (not divided by V, not symmetrized), N m. Deterministic:
 /// fixed-grain chunks folded in order.
 Mat3 contact_stress_sum(const ContactPairs& pairs, const std::vector<Vec3>& force, const std::vector<Vec3>& x,
-                        const Vec3& length, Executor& exec);
+                        const Cell& cell, Executor& exec);
 
 /// Symmetrized contact stress tensor, Pa, compression positive.
 Mat3 contact_stress(const State& state, Executor& exec);

@@ -17,6 +17,7 @@ enum class PathScale {
   target,  // the per-axis targets (`fixed`)
   p,       // servo.p
   sigma3,  // servo.sigma3
+  normal,  // servo.normal_stress (simple shear)
   none,    // the custom path's function decides
 };
 
@@ -30,7 +31,16 @@ struct StressPathSpec {
   /// Target principal stresses (s1*, s2*, s3*), Pa, compression positive, from the measured s1;
   /// null for `custom`.
   Vec3 (*targets)(const ServoSettings& servo, double s1);
+  /// The paths that decide all six components (simple shear, rotation): their answer at a servo
+  /// update, handled as a custom path's (custom_strain_rates); null for the others.
+  PathTargets (*answer)(const ServoSettings& servo, const PathInput& input);
+  bool shear_settings;  // the shear components follow servo.shear_control (all but rotation and custom)
 };
+
+/// The stress tensor (Pa, compression positive) with principal values from p, b and q and the
+/// major principal direction at angle alpha (rad) from x toward z, the intermediate along y:
+/// s3 = p - d (1 + b)/3, s1 = s3 + d, s2 = s3 + b d, d = q / sqrt(1 - b + b^2).
+Mat3 rotated_stress(double p, double b, double q, double alpha);
 
 /// Every built-in path, in enum order.
 std::span<const StressPathSpec> stress_paths();

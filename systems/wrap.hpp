@@ -1,5 +1,6 @@
 #pragma once
-// wrap: brings every position back into the cell, x_k in [0, L_k), after the drift. Scheduled only
+// wrap: brings every position back into the cell, x_k in [0, L_k) (a tilted cell: its reduced
+// coordinates s = H^-1 x in [0, 1)), after the drift. Scheduled only
 // in scenes without contacts; with contacts the broadphase wraps at each list build instead, since
 // wrapping between builds would invalidate the periodic images stored with the pairs.
 // Reads the cell; writes positions. Per-particle independent: a parallel_for.
@@ -21,5 +22,9 @@ struct Wrap {
 /// shift[k] = s (indexed from 0 for particle b) such that the new x = old x - s L per axis: what a
 /// pair's periodic image must change by to describe the same branch vector.
 void wrap_positions(Vec3* x, const Vec3& length, std::size_t b, std::size_t e, std::array<int, 3>* shift = nullptr);
+
+/// The same for any cell: an orthorhombic one as above (bitwise); a tilted one by its reduced
+/// coordinates, x <- x - H floor(s), shift = floor(s) (the images of the lattice basis H).
+void wrap_positions(Vec3* x, const Cell& cell, std::size_t b, std::size_t e, std::array<int, 3>* shift = nullptr);
 
 }  // namespace sandcell

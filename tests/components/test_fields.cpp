@@ -20,8 +20,8 @@ TEST_CASE("the registry lists every particle and contact array") {
   c.has_rolling = true;
   std::size_t contact_fields = 0;
   for_each_contact_field(c, [&](const FieldInfo&, auto&) { ++contact_fields; });
-  // ContactPairs also holds the reference cell lengths of the last build (one Vec3, not an array).
-  CHECK(sizeof(ContactPairs) - sizeof(Vec3) + sizeof(ContactForces) + 2 * sizeof(std::vector<Vec3>) ==
+  // ContactPairs also holds the reference cell lengths and tilts of the last build (two Vec3, not arrays).
+  CHECK(sizeof(ContactPairs) - 2 * sizeof(Vec3) + sizeof(ContactForces) + 2 * sizeof(std::vector<Vec3>) ==
         contact_fields * sizeof(std::vector<double>));
   c.has_rolling = false;
   std::size_t without_rolling = 0;
