@@ -63,9 +63,10 @@ PathWatch::PathWatch(const ServoSettings& servo, PathTolerance tolerance) : serv
 }
 
 double PathWatch::worst(const std::string& q) const {
-  if (q == "p" || q == "sigma3" || q == "path" || q.rfind("axis", 0) == 0) return worst_[k_path];
+  if (q == "p" || q == "sigma3" || q == "q" || q == "sigma_n" || q == "path" || q.rfind("axis", 0) == 0)
+    return worst_[k_path];
   if (q == "b") return worst_[k_b];
-  if (q == "rotation") return worst_[k_rotation];
+  if (q == "rotation" || q == "alpha") return worst_[k_rotation];
   if (q == "shear") return worst_[k_shear];
   if (q == "unbalanced") return worst_[k_unbalanced];
   if (q == "overlap") return worst_[k_overlap];
@@ -81,16 +82,24 @@ void PathWatch::fail(const char* quantity, double value, double tolerance, const
   f.step = row.step;
   f.eps1 = row.eps1;
   const std::string q = quantity;
-  const bool relative = q == "p" || q == "sigma3" || q.rfind("axis", 0) == 0;
-  const std::string value_text = relative          ? fmt("%.2f %%", 100.0 * value) + " off its target"
-                                 : q == "rotation" ? fmt("%.1f deg", value)
+  const bool relative = q == "p" || q == "sigma3" || q == "q" || q == "sigma_n" || q.rfind("axis", 0) == 0;
+  const std::string value_text = relative                          ? fmt("%.2f %%", 100.0 * value) + " off its target"
+                                 : q == "rotation" || q == "alpha" ? fmt("%.1f deg", value)
                                  : q == "b"        ? fmt("%.3f", value) + " off its target"
                                                    : fmt("%.3g", value);
   const std::string tol_text = relative ? fmt("%g %%", 100.0 * tolerance) : fmt("%g", tolerance);
-  const std::string over = q == "overlap" ? "at this row" : "over the last " + fmt("%g %%", 100.0 * tol_.window) +
-                                                                " of axial strain";
+  // The travel the windows count: axial strain, the simple shears' gamma, the rotation's angle (rad).
+  const bool rotation = servo_.path == StressPath::rotation;
+  const bool simple = servo_.path == StressPath::simple_shear || servo_.path == StressPath::simple_shear_cv;
+  const std::string window = rotation ? fmt("%g deg", tol_.window * 180.0 / std::numbers::pi) + " of rotation"
+                             : simple ? fmt("%g %%", 100.0 * tol_.window) + " of shear strain"
+                                      : fmt("%g %%", 100.0 * tol_.window) + " of axial strain";
+  const std::string where = rotation ? "alpha - alpha0 = " + fmt("%.1f deg", row.eps1 * 180.0 / std::numbers::pi)
+                            : simple ? "gamma = " + fmt("%.2f %%", 100.0 * row.eps1)
+                                     : "eps1 = " + fmt("%.2f %%", 100.0 * row.eps1);
+  const std::string over = q == "overlap" ? "at this row" : "over the last " + window;
   f.message = "left its stress path: " + q + " " + value_text + " " + over + " (tolerance " + tol_text +
-              ") at step " + std::to_string(row.step) + ", eps1 = " + fmt("%.2f %%", 100.0 * row.eps1);
+              ") at step " + std::to_string(row.step) + ", " + where;
   failure_ = f;
 }
 
@@ -115,7 +124,7 @@ void PathWatch::judge(const PathRow& row) {
     if (travel_ < tol_.start) return;
     begin_ = travel_;
   }
-  window_.push_back({travel_, row.stress, row.unbalanced});
+  window_.push_back({travel_, row.stress, row.unbalanced, row.time});
   while (travel_ - window_.front().travel > tol_.window) window_.pop_front();
   if (travel_ < tol_.start + tol_.window) return;  // the first window is not full yet
   if (window_.size() < static_cast<std::size_t>(tol_.rows)) {
@@ -151,6 +160,12 @@ void PathWatch::judge(const PathRow& row) {
   // What the path holds (systems/stress_paths.hpp): p or sigma3 on the b paths, else each
   // stress-controlled axis's target; a custom path's targets are its function's, not checked here.
   const StressPathSpec& spec = stress_path(servo_.path);
+  if (spec.answer != nullptr) {
+    judge_shearing(m, row);
+    worst_[k_unbalanced] = std::max(worst_[k_unbalanced], unbalanced);
+    fail("unbalanced", unbalanced, tol_.unbalanced, row);
+    return;
+  }
   if (spec.has_b) {
     if (spec.scale == PathScale::p)
       path_error("p", std::abs(p - servo_.p) / std::abs(servo_.p));
@@ -179,25 +194,72 @@ void PathWatch::judge(const PathRow& row) {
   fail("unbalanced", unbalanced, tol_.unbalanced, row);
 }
 
+// The paths of a shearing cell (path_watch.hpp): what each holds, from the window mean stress.
+void PathWatch::judge_shearing(const Mat3& m, const PathRow& row) {
+  const auto path_error = [&](const char* q, double error) {
+    worst_[k_path] = std::max(worst_[k_path], error);
+    fail(q, error, tol_.stress, row);
+  };
+  const double p = m.trace() / 3.0;
+  if (servo_.path == StressPath::rotation) {
+    Mat3 target = Mat3::Zero();
+    for (const Entry& e : window_) target += rotation_target(servo_, e.time);
+    target /= static_cast<double>(window_.size());
+    const double p_target = target.trace() / 3.0;
+    path_error("p", std::abs(p - p_target) / std::abs(p_target));
+    const Eigen::SelfAdjointEigenSolver<Mat3> measured(m), wanted(target);  // ascending
+    const Vec3 lm = measured.eigenvalues(), lt = wanted.eigenvalues();
+    const auto q_of = [](const Vec3& l) {
+      return std::sqrt(0.5 * ((l[2] - l[1]) * (l[2] - l[1]) + (l[1] - l[0]) * (l[1] - l[0]) +
+                              (l[0] - l[2]) * (l[0] - l[2])));
+    };
+    path_error("q", std::abs(q_of(lm) - q_of(lt)) / std::abs(p_target));
+    if (lm[2] - lm[0] >= k_min_deviator * std::abs(p)) {
+      const double b_error = std::abs((lm[1] - lm[0]) / (lm[2] - lm[0]) - servo_.b);
+      worst_[k_b] = std::max(worst_[k_b], b_error);
+      fail("b", b_error, tol_.b, row);
+      if (lt[2] - lt[0] >= k_min_deviator * std::abs(p_target)) {
+        // The angle between the major principal directions (an axis: the sign of a vector is free).
+        const double c = std::abs(measured.eigenvectors().col(2).dot(wanted.eigenvectors().col(2)));
+        const double alpha = std::acos(std::min(1.0, c)) * 180.0 / std::numbers::pi;
+        worst_[k_rotation] = std::max(worst_[k_rotation], alpha);
+        fail("alpha", alpha, tol_.rotation, row);
+      }
+    }
+    return;
+  }
+  if (servo_.path == StressPath::simple_shear)
+    path_error("sigma_n", std::abs(m(2, 2) - servo_.normal_stress) / std::abs(servo_.normal_stress));
+  if (servo_.shear_control[0] == AxisControl::stress || servo_.shear_control[2] == AxisControl::stress) {
+    const double shear = std::abs(p) > 0.0 ? std::max(std::abs(m(0, 1)), std::abs(m(1, 2))) / std::abs(p) : 0.0;
+    worst_[k_shear] = std::max(worst_[k_shear], shear);
+    fail("shear", shear, tol_.shear, row);
+  }
+}
+
 // Layout: version, travel, last eps1, begin, first row, rows checked, the worst values, the window
 // (count, then travel, 6 stress components xx yy zz xy xz yz and the unbalanced ratio per entry).
+// Version 2 (the rotation path, whose targets follow the clock) adds each entry's time.
 std::vector<double> PathWatch::save() const {
-  std::vector<double> v = {1.0, travel_, last_eps1_, begin_, first_row_ ? 1.0 : 0.0, double(checked_)};
+  const bool timed = servo_.path == StressPath::rotation;
+  std::vector<double> v = {timed ? 2.0 : 1.0, travel_, last_eps1_, begin_, first_row_ ? 1.0 : 0.0, double(checked_)};
   v.insert(v.end(), worst_, worst_ + k_slots);
   v.push_back(double(window_.size()));
   for (const Entry& e : window_) {
     const Mat3& s = e.stress;
     v.insert(v.end(), {e.travel, s(0, 0), s(1, 1), s(2, 2), s(0, 1), s(0, 2), s(1, 2), e.unbalanced});
+    if (timed) v.push_back(e.time);
   }
   return v;
 }
 
 void PathWatch::restore(const std::vector<double>& v) {
   constexpr std::size_t head = 6 + k_slots + 1;
-  if (v.size() < head || v[0] != 1.0)
+  if (v.size() < head || (v[0] != 1.0 && v[0] != 2.0))
     throw std::invalid_argument("PathWatch::restore: not a saved watch (" + std::to_string(v.size()) + " numbers)");
   const std::size_t n = static_cast<std::size_t>(v[head - 1]);
-  if (v.size() != head + 8 * n)
+  const std::size_t per = v[0] == 2.0 ? 9 : 8;
+  if (v.size() != head + per * n)
     throw std::invalid_argument("PathWatch::restore: " + std::to_string(v.size()) + " numbers for " +
                                 std::to_string(n) + " window rows");
   travel_ = v[1];
@@ -208,10 +270,10 @@ void PathWatch::restore(const std::vector<double>& v) {
   std::copy(v.begin() + 6, v.begin() + 6 + k_slots, worst_);
   window_.clear();
   for (std::size_t k = 0; k < n; ++k) {
-    const double* e = v.data() + head + 8 * k;
+    const double* e = v.data() + head + per * k;
     Mat3 s;
     s << e[1], e[4], e[5], e[4], e[2], e[6], e[5], e[6], e[3];
-    window_.push_back({e[0], s, e[7]});
+    window_.push_back({e[0], s, e[7], per == 9 ? e[8] : 0.0});
   }
   failure_.reset();
 }

@@ -17,6 +17,14 @@
 // and, row by row without a window, the largest overlap / radius. A window of fewer than `rows` rows
 // (5) is no mean: such a test fails as "rows" (its path cannot be judged). A custom path (its targets are
 // the function's) gets the rotation, shear, unbalanced and overlap checks only.
+// The paths of a shearing cell (their travel is the app's: the shear strain gamma, or the angle
+// turned in radians) are judged on what they hold:
+//   simple_shear      sigma_n: |S_zz - normal_stress| / normal_stress
+//   rotation          p: |p - p*| / p*; q: |q - q*| / p*; b where s1 - s3 >= 0.1 p; alpha: the angle
+//                     between the measured and the target major principal directions (degrees,
+//                     against `rotation`), the targets the window mean of rotation_target
+//   both simple shears with free xy and yz: shear = max(|S_xy|, |S_yz|) / p
+// (the turn of the principal axes is their purpose: no rotation check there).
 // apps/analysis/sandcell_analysis/path_check.py applies the same rules to a results file.
 #include "engine/model.hpp"
 
@@ -47,10 +55,11 @@ void validate(const PathTolerance& tolerance);
 /// One row's input.
 struct PathRow {
   std::uint64_t step = 0;
-  double eps1 = 0.0;              // -, axial strain (logarithmic, compression positive)
+  double eps1 = 0.0;              // -, axial strain (logarithmic, compression positive), or the path's travel
   Mat3 stress = Mat3::Zero();     // Pa, compression positive
   double max_overlap_ratio = 0.0; // -, 0 when not measured
   double unbalanced = 0.0;        // -, 0 when not measured
+  double time = 0.0;              // s, clock time (the rotation path's target)
 };
 
 /// The first quantity beyond its tolerance.
@@ -104,7 +113,9 @@ class PathWatch {
     double travel;
     Mat3 stress;
     double unbalanced;
+    double time = 0.0;
   };
+  void judge_shearing(const Mat3& mean, const PathRow& row);
   std::deque<Entry> window_;
   double travel_ = 0.0, last_eps1_ = 0.0, begin_ = -1.0;
   bool first_row_ = true;

@@ -391,7 +391,14 @@ void Servo::run(const Model& model, State& state, Scratch& scratch, Executor&) {
   const StressPathSpec& spec = stress_path(model.servo.path);
   if (model.servo.path == StressPath::custom || spec.answer != nullptr) {
     const PathInput input = path_input(model, measured.stress, cell, state.clock);
-    const PathTargets targets = spec.answer ? spec.answer(model.servo, input) : model.servo.custom(input);
+    PathTargets targets = spec.answer ? spec.answer(model.servo, input) : model.servo.custom(input);
+    // A shear component the settings hold by stress (cell.shear = "free") stays so under a custom path.
+    if (!spec.answer)
+      for (int k = 0; k < 3; ++k)
+        if (model.servo.shear_control[k] == AxisControl::stress) {
+          targets.shear_control[k] = AxisControl::stress;
+          targets.shear_value[k] = model.servo.shear_target[k];
+        }
     Vec3 shear = Vec3::Zero();
     cell.rate = -custom_strain_rates(model.servo, targets, input, &cell.servo_integral, &shear, &cell.shear_integral);
     cell.shear_rate = Vec3::Zero() - shear;  // L_ab = -gamma_dot_ab (0 - 0 = +0: a fixed cell stays orthorhombic)

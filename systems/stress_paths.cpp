@@ -2,6 +2,7 @@
 
 #include "engine/name_table.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <iterator>
 
@@ -23,7 +24,19 @@ Vec3 constant_sigma3_targets(const ServoSettings& s, double s1) {
 // Simple shear: xx and yy strain controlled (strain_rate, 0 for the classical test), zz by stress at
 // normal_stress (drained) or by strain (constant volume, with xx and yy at 0); the shear components
 // from the shear settings (xz at shear_strain_rate[1]).
-PathTargets simple_shear_answer(const ServoSettings& s, const PathInput&) {
+// The factor of a strain-controlled rate at an update: at a set inertial number I sqrt(p/rho) / d50 (p
+// the measured mean stress, floored at 1e-3 of the path's scale), times the ramp's time / ramp_time.
+double rate_factor(const ServoSettings& s, const PathInput& in) {
+  double f = 1.0;
+  if (s.inertial_number > 0.0) {
+    const double floor = 1e-3 * std::max(path_scale(s), 1e-300);
+    f = s.inertial_number * std::sqrt(std::max(in.stress.trace() / 3.0, floor) / s.density) / s.d50;
+  }
+  if (s.ramp_time > 0.0 && in.time < s.ramp_time) f *= in.time / s.ramp_time;
+  return f;
+}
+
+PathTargets simple_shear_answer(const ServoSettings& s, const PathInput& in) {
   PathTargets t;
   t.control = {AxisControl::strain, AxisControl::strain,
                s.path == StressPath::simple_shear ? AxisControl::stress : AxisControl::strain};
@@ -31,14 +44,15 @@ PathTargets simple_shear_answer(const ServoSettings& s, const PathInput&) {
   if (s.path == StressPath::simple_shear_cv) t.value = Vec3::Zero();
   t.shear_control = s.shear_control;
   for (int k = 0; k < 3; ++k)
-    t.shear_value[k] = s.shear_control[k] == AxisControl::strain ? s.shear_strain_rate[k] : s.shear_target[k];
+    t.shear_value[k] =
+        s.shear_control[k] == AxisControl::strain ? s.shear_strain_rate[k] * rate_factor(s, in) : s.shear_target[k];
   return t;
 }
 
-// Rotation of the principal axes: every component stress controlled toward rotated_stress at
-// alpha = rotation_start + rotation_rate t.
+// Rotation of the principal axes: every component stress controlled toward rotated_stress, q raised
+// linearly to servo.q over ramp_time at rotation_start, then alpha = rotation_start + rotation_rate (t - ramp_time).
 PathTargets rotation_answer(const ServoSettings& s, const PathInput& in) {
-  const Mat3 target = rotated_stress(s.p, s.b, s.q, s.rotation_start + s.rotation_rate * in.time);
+  const Mat3 target = rotation_target(s, in.time);
   PathTargets t;
   t.control = {AxisControl::stress, AxisControl::stress, AxisControl::stress};
   t.shear_control = t.control;
@@ -80,6 +94,12 @@ const StressPathSpec& stress_path(StressPath path) { return k_paths[static_cast<
 const StressPathSpec* find_stress_path(std::string_view name) { return find_named(stress_paths(), name); }
 
 std::string stress_path_names() { return joined_names(stress_paths()); }
+
+Mat3 rotation_target(const ServoSettings& s, double time) {
+  const double ramp = s.ramp_time > 0.0 ? std::min(1.0, time / s.ramp_time) : 1.0;
+  const double turning = std::max(0.0, time - s.ramp_time);
+  return rotated_stress(s.p, s.b, s.q * ramp, s.rotation_start + s.rotation_rate * turning);
+}
 
 Mat3 rotated_stress(double p, double b, double q, double alpha) {
   const double d = q / std::sqrt(1.0 - b + b * b);

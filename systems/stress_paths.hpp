@@ -42,6 +42,10 @@ struct StressPathSpec {
 /// s3 = p - d (1 + b)/3, s1 = s3 + d, s2 = s3 + b d, d = q / sqrt(1 - b + b^2).
 Mat3 rotated_stress(double p, double b, double q, double alpha);
 
+/// The rotation path's target at clock time t (s): q rising linearly to servo.q over servo.ramp_time
+/// at alpha = rotation_start, then alpha = rotation_start + rotation_rate (t - ramp_time).
+Mat3 rotation_target(const ServoSettings& servo, double time);
+
 /// Every built-in path, in enum order.
 std::span<const StressPathSpec> stress_paths();
 /// The row of a path.

@@ -12,6 +12,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <numbers>
 #include <cstdlib>
 #include <optional>
 
@@ -114,10 +115,38 @@ class ShearRun {
   State start_from_sample(const fs::path& sample);
   void row();
   CheckpointExtra extras() const;
-  static double axial_strain(const Cell& cell) { return -std::log(cell.length[0] / cell.length0[0]); }
+  /// The path's travel (what its end, its rows and its watch count): the axial strain, the simple
+  /// shears' gamma = F_xz, the rotation's angle turned (rad).
+  double travel(const Cell& cell, const sandcell::Clock& clock) const {
+    switch (test_.path) {
+      case ShearPath::simple_shear:
+      case ShearPath::simple_shear_cv: return cell.deformation()(0, 2);
+      case ShearPath::rotation: {
+        const RotationConfig& r = plan_.config.rotation;
+        return std::max(0.0, clock.time - r.ramp_time) * r.rate * std::numbers::pi / 180.0;
+      }
+      default: return -std::log(cell.length[0] / cell.length0[0]);
+    }
+  }
+  /// Where the test ends, for the log.
+  std::string goal() const {
+    switch (test_.path) {
+      case ShearPath::strain: return "for " + std::to_string(h_.steps) + " steps";
+      case ShearPath::simple_shear:
+      case ShearPath::simple_shear_cv: return "to shear strain " + num(h_.max_shear_strain);
+      case ShearPath::rotation: return "through " + num(plan_.config.rotation.angle) + " deg";
+      default: return "to axial strain " + num(max_strain_);
+    }
+  }
   bool finished(std::uint64_t s, double eps1) const {
     if (cyclic_ && cyclic_->finished()) return true;  // cyclic.cycles or cyclic.max_strain reached
-    return test_.path == ShearPath::strain ? s >= h_.steps : eps1 >= max_strain_;
+    switch (test_.path) {
+      case ShearPath::strain: return s >= h_.steps;
+      case ShearPath::simple_shear:
+      case ShearPath::simple_shear_cv: return eps1 >= h_.max_shear_strain;
+      case ShearPath::rotation: return eps1 >= plan_.config.rotation.angle * std::numbers::pi / 180.0;
+      default: return eps1 >= max_strain_;
+    }
   }
   bool progress_due() const {
     return plan_.options.progress && std::chrono::duration<double>(Clock::now() - last_progress_).count() > 1.0;
@@ -178,7 +207,7 @@ bool ShearRun::open(const Runner& runner, const fs::path& sample) {
   mo_.density = plan_.config.material.density;
   log_.line(test_.name + ": " + path_name(test_.path) +
             (test_.path == ShearPath::strain ? "" : ", b = " + num(test_.b)) + ", p0 = " + num(test_.p0 / 1e6) +
-            " MPa, e0 = " + num(summary_.e0, "%.4f") + ", to axial strain " + num(max_strain_) + ", servo gain " +
+            " MPa, e0 = " + num(summary_.e0, "%.4f") + ", " + goal() + ", servo gain " +
             num(model.servo.gain, "%.4g") + " 1/s, " + std::to_string(plan_.job_threads) + " threads");
   if (!resumed_) {
     row();
@@ -221,13 +250,15 @@ void ShearRun::row() {
   append_row(*results_, world_->state(), m_, timer_.elapsed());
   if (world_->state().clock.step > 0) watch_.check(m_, world_->state().clock.step);
   const std::uint64_t step = world_->state().clock.step;
-  const auto failure = path_watch_.add({step, m_.strain[0], m_.stress, m_.max_overlap_ratio, m_.unbalanced});
+  const double travelled = travel(world_->state().cell, world_->state().clock);
+  const auto failure = path_watch_.add(
+      {step, travelled, m_.stress, m_.max_overlap_ratio, m_.unbalanced, world_->state().clock.time});
   if (failure && !summary_.left_path()) {  // (a resumed watch.stop = false run keeps its first reason)
     summary_.reason = failure->message;
     log_.line(test_.name + ": failed: " + failure->message +
               (plan_.config.watch.stop ? "; stopped" : "; runs on (watch.stop = false)"));
   }
-  history_.eps1.push_back(m_.strain[0]);
+  history_.eps1.push_back(travelled);  // the axial strain on the axial paths (the same expression)
   history_.p.push_back(m_.inv.p);
   history_.q.push_back(m_.inv.q);
   history_.e.push_back(m_.void_ratio);
@@ -260,11 +291,11 @@ void ShearRun::run() {
     // Steps until the body below has something to do: one call for many steps is bitwise the
     // same as one call per step, and faster (World::step_until).
     world_->step_until(std::numeric_limits<std::uint64_t>::max(), [&](Cell& cell, const sandcell::Clock& clock) {
-      return event_due(clock.step, axial_strain(cell));
+      return event_due(clock.step, travel(cell, clock));
     });
     State& st = world_->state();
     const std::uint64_t s = st.clock.step;
-    const double eps1 = axial_strain(st.cell);
+    const double eps1 = travel(st.cell, st.clock);
     const bool done = finished(s, eps1);
     if (s % o_.series_interval == 0 || done) {
       row();

@@ -39,8 +39,8 @@ toml::table parse_toml(const std::string& text, const std::string& source) {
 
 // Every top-level key must be one of the known tables.
 void check_sections(const toml::table& root, const std::string& source) {
-  static const char* const sections[] = {"sample", "material", "contact", "time",  "prepare",
-                                         "shear",  "tests",    "output",  "watch", "cyclic"};
+  static const char* const sections[] = {"sample", "material", "contact", "time",  "prepare", "shear",
+                                         "tests",  "output",   "watch",   "cyclic", "cell",    "rotation"};
   for (const auto& [key, node] : root) {
     bool known = false;
     for (const char* s : sections) known = known || key.str() == s;
@@ -48,7 +48,7 @@ void check_sections(const toml::table& root, const std::string& source) {
       throw ConfigError(source + ": [" + std::string(key.str()) +
                         "]: " + (known ? "must be a table" : "unknown section") +
                         "; allowed sections: [sample] [material] [contact] [time] [prepare] [shear] [tests] [output] "
-                        "[watch] [cyclic]");
+                        "[watch] [cyclic] [cell] [rotation]");
   }
 }
 
@@ -223,6 +223,9 @@ Config parse_config(const std::string& text, const std::string& source) {
   parse_watch(root, source, c.watch);
   parse_cyclic(root, source, c.cyclic);
   check_cyclic(c, source);
+  parse_cell(root, source, c.cell);
+  parse_rotation(root, source, c.rotation);
+  check_shearing_cell(c, source);
   check_shear_for_tests(c, source);
   check_prepare_step(c, source);
   return c;

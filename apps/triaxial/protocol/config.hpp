@@ -39,7 +39,7 @@ struct PrepareConfig {
 };
 
 /// The path of a test (tests.path); its name and needs are its row in protocol/paths.cpp.
-enum class ShearPath { constant_p, constant_sigma3, strain, undrained, cyclic };
+enum class ShearPath { constant_p, constant_sigma3, strain, undrained, cyclic, simple_shear, simple_shear_cv, rotation };
 
 struct ShearConfig {
   double strain_rate = 0.0;          // 1/s, axial (axis 1) compression rate of the stress paths (0: not given)
@@ -59,6 +59,27 @@ struct ShearConfig {
   double critical_tolerance_e = 0.005;  // -, largest change of e over the window (fitted line)
   Vec3 strain_rates = Vec3::Zero();     // 1/s per axis, compression positive, for path "strain"
   std::uint64_t steps = 0;              // steps of a strain-controlled stage
+  double max_shear_strain = 0.0;        // -, simple shear paths: stop at this engineering shear strain
+                                        // gamma = F_xz (0: not given; required by those paths)
+};
+
+/// [cell]: whether the cell's shear components are held fixed (an orthorhombic cell, the study's) or
+/// free (the three shear stresses servo-controlled to zero, docs/physics.md section 6.2).
+struct CellConfig {
+  bool free = false;
+  bool given = false;  // the key is in the file
+};
+
+/// [rotation]: the rotation of the principal stress axes (tests.path = "rotation"): p = p0 and b
+/// held, q raised to eta p0 over ramp_time at alpha0, then sigma1's direction turned in the xz plane
+/// at `rate` through `angle`.
+struct RotationConfig {
+  double eta = 0.0;        // -, q / p0, > 0
+  double alpha0 = 0.0;     // degrees, sigma1's angle from x toward z during the ramp
+  double angle = 180.0;    // degrees, total rotation after the ramp
+  double rate = 0.0;       // degrees/s, > 0
+  double ramp_time = 0.0;  // s, > 0
+  bool given = false;
 };
 
 struct TestSpec {
@@ -112,6 +133,8 @@ struct Config {
   OutputConfig output;
   WatchConfig watch;
   CyclicConfig cyclic;
+  CellConfig cell;
+  RotationConfig rotation;
 };
 
 /// The embedded default: ~2000 spheres prepared at 0.5 MPa, sheared along constant p, b = 0.5, to

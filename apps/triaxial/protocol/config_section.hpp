@@ -185,6 +185,9 @@ void parse_output(const toml::table& root, const std::string& source, OutputConf
 void parse_watch(const toml::table& root, const std::string& source, WatchConfig& w);
 void parse_cyclic(const toml::table& root, const std::string& source, CyclicConfig& c);
 void check_cyclic(const Config& c, const std::string& source);
+void parse_cell(const toml::table& root, const std::string& source, CellConfig& c);
+void parse_rotation(const toml::table& root, const std::string& source, RotationConfig& r);
+void check_shearing_cell(const Config& c, const std::string& source);
 void check_shear_for_tests(const Config& c, const std::string& source);
 void check_prepare_step(const Config& c, const std::string& source);
 

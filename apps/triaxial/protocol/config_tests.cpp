@@ -41,6 +41,8 @@ void parse_shear(const toml::table& root, const std::string& source, ShearConfig
     h.strain_rates = Vec3(rates[0], rates[1], rates[2]);
   }
   s.integer("steps", h.steps, 0, UINT64_MAX, "must be an integer >= 0");
+  s.number("max_shear_strain", h.max_shear_strain, 1e-9, 1e3,
+           "must be in (0, 1000] (engineering shear strain gamma = F_xz of the simple shear paths)");
   s.check_unknown();
 }
 
@@ -146,7 +148,9 @@ void parse_output(const toml::table& root, const std::string& source, OutputConf
 // paths, steps and no ramp for the strain path, a ramp shorter than the test.
 void check_shear_for_tests(const Config& c, const std::string& source) {
   bool stress_path = false;
-  for (const TestSpec& t : c.tests) stress_path = stress_path || t.path != ShearPath::strain;
+  // The paths driven at an axial (or shear) rate: all but the strain path and the rotation (stress only).
+  for (const TestSpec& t : c.tests)
+    stress_path = stress_path || (t.path != ShearPath::strain && t.path != ShearPath::rotation);
   if (c.shear.strain_rate > 0.0 && c.shear.inertial_number > 0.0)
     throw ConfigError(source + ": shear.strain_rate = " + num(c.shear.strain_rate) +
                       " and shear.inertial_number = " + num(c.shear.inertial_number) +
@@ -175,6 +179,11 @@ void check_shear_for_tests(const Config& c, const std::string& source) {
   }
   // Critical state is tested once a test has sheared critical_window + pre_strain (critical.hpp):
   // with no room for that before max_axial_strain, stop_at_critical could never stop a test.
+  for (const TestSpec& t : c.tests)
+    if (c.shear.stop_at_critical && (t.path == ShearPath::simple_shear || t.path == ShearPath::simple_shear_cv ||
+                                     t.path == ShearPath::rotation))
+      throw ConfigError(source + ": shear.stop_at_critical = true: path \"" + std::string(test_path(t.path).name) +
+                        "\" has no axial strain to test critical state over; allowed: false");
   const double pre = CriticalTest{}.pre_strain;
   if (stress_path && c.shear.stop_at_critical && c.shear.critical_window + pre >= c.shear.max_axial_strain)
     throw ConfigError(source + ": shear.critical_window = " + num(c.shear.critical_window) +
@@ -242,6 +251,50 @@ void check_cyclic(const Config& c, const std::string& source) {
   if (c.cyclic.cycles == 0 && c.cyclic.max_strain == 0.0)
     throw ConfigError(source + ": cyclic.cycles = 0 and cyclic.max_strain = 0: a cyclic test needs an end; "
                       "allowed: cycles >= 1, or max_strain > 0");
+}
+
+// [cell]: shear = "fixed" (orthorhombic, the default) or "free" (the shear stresses held at zero).
+void parse_cell(const toml::table& root, const std::string& source, CellConfig& c) {
+  Section s = section(root, "cell", source);
+  c.given = root.contains("cell") && root["cell"].as_table()->contains("shear");
+  s.choice("shear", c.free, {{"fixed", false}, {"free", true}});
+  s.check_unknown();
+}
+
+// [rotation]: the principal-stress rotation path's load and rotation.
+void parse_rotation(const toml::table& root, const std::string& source, RotationConfig& r) {
+  r.given = root.contains("rotation");
+  Section s = section(root, "rotation", source);
+  s.number("eta", r.eta, 1e-6, 3.0, "must be in (0, 3) (q / p0; sigma3 must stay > 0: eta < 3 / (1 + b) sqrt(1 - b + b^2))");
+  s.number("alpha0", r.alpha0, -360.0, 360.0, "must be in [-360, 360] degrees");
+  s.number("angle", r.angle, 1e-6, 36000.0, "must be in (0, 36000] degrees");
+  s.number("rate", r.rate, 1e-9, 1e9, "must be > 0 degrees/s");
+  s.number("ramp_time", r.ramp_time, 1e-12, 1e9, "must be > 0 s (the time over which q rises to eta p0)");
+  s.check_unknown();
+}
+
+// The keys of the shearing cell against the campaign's paths: each must act on some test.
+void check_shearing_cell(const Config& c, const std::string& source) {
+  bool rotation = false, simple = false, servo_paths = false;
+  for (const TestSpec& t : c.tests) {
+    rotation = rotation || t.path == ShearPath::rotation;
+    simple = simple || t.path == ShearPath::simple_shear || t.path == ShearPath::simple_shear_cv;
+    servo_paths = servo_paths || (t.path != ShearPath::strain && t.path != ShearPath::rotation);
+  }
+  if (c.cell.given && !servo_paths)
+    throw ConfigError(source + ": cell.shear: no test of tests.path lets the cell's shear components be fixed or free "
+                      "(path \"strain\" has no servo, \"rotation\" controls all six stresses); allowed: leave it out");
+  if (c.rotation.given && !rotation)
+    throw ConfigError(source + ": [rotation]: no test of tests.path is \"rotation\"; allowed: leave the table out");
+  if (rotation && (!(c.rotation.eta > 0.0) || !(c.rotation.rate > 0.0) || !(c.rotation.ramp_time > 0.0)))
+    throw ConfigError(source + ": rotation.eta = " + num(c.rotation.eta) + ", rotation.rate = " + num(c.rotation.rate) +
+                      ", rotation.ramp_time = " + num(c.rotation.ramp_time) +
+                      ": tests.path = \"rotation\" needs all three > 0 (q / p0, degrees/s, s)");
+  if (c.shear.max_shear_strain > 0.0 && !simple)
+    throw ConfigError(source + ": shear.max_shear_strain = " + num(c.shear.max_shear_strain) +
+                      ": only the simple shear paths stop at a shear strain; allowed: leave it out");
+  if (simple && !(c.shear.max_shear_strain > 0.0))
+    throw ConfigError(source + ": shear.max_shear_strain: not given; the simple shear paths need it (e.g. 2.0)");
 }
 
 // [watch]: the stress-path watchdog's tolerances (ranges as sandcell::validate(PathTolerance)).

@@ -21,6 +21,14 @@ constexpr TestPath k_paths[] = {
     {ShearPath::cyclic, "cyclic", "cyc", false, false, false, false,
      "[cyclic]: q/p0 (stress mode) or eps1 (strain mode, at shear.strain_rate) between the bounds, undrained or at "
      "sigma3 = p0, until cyclic.cycles or cyclic.max_strain"},
+    {ShearPath::simple_shear, "simple_shear", "ss", false, false, true, true,
+     "xz sheared at shear.strain_rate (engineering, gamma_dot = -L_xz), xx and yy fixed, S_zz held at p0, until "
+     "shear.max_shear_strain"},
+    {ShearPath::simple_shear_cv, "simple_shear_cv", "sscv", false, false, true, true,
+     "xz sheared at shear.strain_rate, xx, yy and zz fixed (constant volume), until shear.max_shear_strain"},
+    {ShearPath::rotation, "rotation", "rot", true, false, false, false,
+     "[rotation]: p = p0 and b held, q raised to eta p0 over ramp_time, then sigma1 turned in the xz plane at rate "
+     "through angle (all six stress components servo-controlled)"},
 };
 
 static_assert(in_id_order(k_paths), "k_paths: one row per ShearPath, in enum order");

@@ -10,6 +10,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <numbers>
 #include <stdexcept>
 
 namespace sandcell::triaxial {
@@ -209,6 +210,13 @@ Model shear_model(const Protocol& plan, const TestSpec& test) {
   ServoSettings& s = m.servo;
   if (test.path == ShearPath::strain) return m;  // rates set once on the cell; no servo scheduled
   s.enabled = true;
+  // cell.shear = "free": the three shear stresses held at zero (every servo path but the rotation,
+  // which controls all six). A custom path's answer keeps its own shear components unless these say
+  // stress (systems/servo.hpp).
+  if (plan.config.cell.free) {
+    s.shear_control = {AxisControl::stress, AxisControl::stress, AxisControl::stress};
+    s.shear_target = Vec3::Zero();
+  }
   switch (test.path) {
     case ShearPath::constant_p: s.path = StressPath::constant_p; break;
     case ShearPath::constant_sigma3: s.path = StressPath::constant_sigma3; break;
@@ -233,7 +241,56 @@ Model shear_model(const Protocol& plan, const TestSpec& test) {
       s.custom = CyclicPath(cs);
       break;
     }
+    case ShearPath::simple_shear:
+    case ShearPath::simple_shear_cv: {
+      s.path = test.path == ShearPath::simple_shear ? StressPath::simple_shear : StressPath::simple_shear_cv;
+      s.normal_stress = test.p0;
+      s.shear_control[1] = AxisControl::strain;  // xz driven; xy and yz fixed or free (cell.shear)
+      s.strain_rate = Vec3::Zero();
+      break;
+    }
+    case ShearPath::rotation: {
+      const RotationConfig& r = plan.config.rotation;
+      s.path = StressPath::rotation;
+      s.p = test.p0;
+      s.b = test.b;
+      s.q = r.eta * test.p0;
+      s.rotation_start = r.alpha0 * std::numbers::pi / 180.0;
+      s.rotation_rate = r.rate * std::numbers::pi / 180.0;
+      s.ramp_time = r.ramp_time;
+      s.shear_control = {AxisControl::stress, AxisControl::stress, AxisControl::stress};
+      s.control = s.shear_control;
+      s.max_rate = h.max_rate > 0.0 ? h.max_rate : 1.0;
+      const DerivedServo derived = derived_servo(Stage::shear, test.p0, m.materials[0], plan.servo_time);
+      s.gain = h.gain > 0.0 ? h.gain : derived.gain;
+      s.integral_time = h.integral_time > 0.0 ? h.integral_time : derived.integral_time;
+      s.interval = h.servo_interval;
+      return m;
+    }
     case ShearPath::strain: break;
+  }
+  if (test.path == ShearPath::simple_shear || test.path == ShearPath::simple_shear_cv) {
+    // gamma_dot = shear.strain_rate, or I sqrt(p/rho) / d50 at a set inertial number (the path's answer
+    // scales the direction (0, 1, 0) by it at each update, systems/stress_paths.cpp).
+    const double rate0 = axial_rate(plan, test.p0);
+    // gamma = F_xz grows: L_xz = +rate, the servo's engineering rate -L_xz (soil convention).
+    s.shear_strain_rate = Vec3(0.0, -(h.inertial_number > 0.0 ? 1.0 : h.strain_rate), 0.0);
+    if (h.inertial_number > 0.0) {
+      s.inertial_number = h.inertial_number;
+      s.d50 = plan.d50;
+      s.density = plan.config.material.density;
+    }
+    s.ramp_time = 2.0 * h.ramp_strain / rate0;
+    s.max_rate = h.max_rate > 0.0 ? h.max_rate : 10.0 * rate0;
+    s.max_rate_ratio = h.max_rate > 0.0 ? 0.0 : 10.0;
+    const DerivedServo derived = derived_servo(Stage::shear, test.p0, m.materials[0], plan.servo_time);
+    s.gain = h.gain > 0.0 ? h.gain : derived.gain;
+    s.integral_time = h.integral_time > 0.0 ? h.integral_time : derived.integral_time;
+    s.integral_strain = h.integral_time > 0.0 ? 0.0 : h.integral_strain > 0.0 ? h.integral_strain
+                                                  : h.inertial_number > 0.0   ? k_integral_strain
+                                                                              : 0.0;
+    s.interval = h.servo_interval;
+    return m;
   }
   s.control = {AxisControl::strain, AxisControl::stress, AxisControl::stress};
   const double rate0 = axial_rate(plan, test.p0);
@@ -290,10 +347,15 @@ void start_test(const Protocol& protocol, const TestSpec& test, State& state) {
   const ShearConfig& h = protocol.config.shear;
   state.clock = {};
   state.cell.length0 = state.cell.length;
+  state.cell.tilt0 = state.cell.tilt;  // the strains count from here: F = I
+  state.cell.flip.setZero();
   state.cell.servo_integral.setZero();  // servo state resets between stages
+  state.cell.shear_integral.setZero();
+  state.cell.shear_rate.setZero();
   if (test.path == ShearPath::strain)
     state.cell.rate = -h.strain_rates;
-  else if (test.path == ShearPath::cyclic)
+  else if (test.path == ShearPath::cyclic || test.path == ShearPath::rotation ||
+           test.path == ShearPath::simple_shear || test.path == ShearPath::simple_shear_cv)
     state.cell.rate.setZero();  // the path's first update sets every axis
   else
     state.cell.rate = Vec3(h.ramp_strain > 0.0 ? 0.0 : -axial_rate(protocol, test.p0), 0.0, 0.0);
