@@ -1,7 +1,7 @@
 // dem-bench: throughput and physics check on fixed scenes, with the settings the established codes
 // ran (apps/dem-bench/scenes/: the scenes and the settings, docs/performance.md: the figures).
 //
-//   dem-bench [--scene FILE] [--steps N] [--threads T] [--deform RATE] [--rolling MODEL]
+//   dem-bench [--scene FILE] [--steps N] [--threads T] [--deform RATE] [--shear RATE] [--rolling MODEL]
 //             [--tangential MODEL] [--compat] [--sort STEPS] [--serial] [--json]
 // --sort STEPS: spatial sort interval (default 1000; 0 = never).
 //
@@ -20,6 +20,9 @@
 //
 // Scene A: fixed periodic box. Scene B (--deform RATE): box shortened along z at a constant
 // engineering strain rate RATE (1/s), x and y fixed, as LIGGGHTS `fix deform ... erate -RATE`.
+// A shearing cell (--shear RATE): simple shear, L_xz = RATE (1/s, the tilt xz growing as LAMMPS's
+// `fix deform ... xz erate RATE`, flipped past half a length): from the first step every pass takes
+// its tilted-cell form, so its cost beside scene A or B is the cost of a tilted cell.
 // Prints particles, steps, threads, wall seconds of the step loop, particle-steps per second, mean
 // contacts per particle, neighbour-list builds, peak memory, the final contact stress tensor, and
 // the share of the step loop spent in each system (the engine's own timers), and a digest of the
@@ -78,13 +81,25 @@ std::uint64_t state_digest(const State& s) {
   f.array(s.contacts.tangential);
   f.array(s.contacts.rolling);
   f.bytes(s.cell.length.data(), sizeof(double) * 3);
+  if (!s.cell.plain()) {  // a shearing cell's tilts and flips too (an orthorhombic digest is unchanged)
+    f.bytes(s.cell.tilt.data(), sizeof(double) * 3);
+    f.bytes(s.cell.flip.data(), sizeof(double) * 3);
+  }
   return f.h;
 }
+
+// How the scene's cell moves: scene B's engineering rate (z), simple shear (L_xz).
+struct Drive {
+  double deform = 0.0;  // 1/s
+  double shear = 0.0;   // 1/s
+};
 
 // Steps the scene: scene B (deform > 0) shortens z at the engineering rate RATE: L_z(t) =
 // L_z0 (1 - RATE t), so D_zz = dL_z/dt / L_z = -RATE L_z0 / L_z, set before each step from the
 // current length. One step_until call for all the steps (World::step_until).
-void advance(World& world, long steps, double deform, double lz0) {
+void advance(World& world, long steps, const Drive& drive, double lz0) {
+  const double deform = drive.deform;
+  if (drive.shear != 0.0) world.state().cell.shear_rate = Vec3(0.0, drive.shear, 0.0);
   const auto set_rate = [&](Cell& cell) {
     if (deform > 0.0) cell.rate = Vec3(0.0, 0.0, -deform * lz0 / cell.length[2]);
   };
@@ -144,8 +159,9 @@ double stream_rate(Executor& exec, std::vector<double>& x, std::vector<double>& 
 //   the 1-thread world (checked).
 // It also prints the engine's per-system timers of the 1- and T-thread worlds summed over the
 // rounds: which pass loses what, measured in the same rounds.
-int run_scaling(const Model& model, const Packing& packing, long steps, int threads, int rounds, double deform,
+int run_scaling(const Model& model, const Packing& packing, long steps, int threads, int rounds, const Drive& drive,
                 bool json, bool probe, Partition partition) {
+  const double deform = drive.deform;
   // T = 0: all hardware threads, as the executor counts them (TBB's default concurrency).
   World many(model, make_state(model, packing), systems_for(model), ExecutorConfig{Backend::tbb, threads, partition});
   threads = many.executor().threads();
@@ -161,7 +177,7 @@ int run_scaling(const Model& model, const Packing& packing, long steps, int thre
     return double(worlds) * n * double(steps) /
            std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   };
-  const auto timed = [&](World& w) { return rate(1, [&] { advance(w, steps, deform, lz0); }); };
+  const auto timed = [&](World& w) { return rate(1, [&] { advance(w, steps, drive, lz0); }); };
   std::vector<std::unique_ptr<World>> jobs;
   for (int t = 0; t < threads; ++t)
     jobs.push_back(std::make_unique<World>(model, make_state(model, packing), systems_for(model),
@@ -170,7 +186,7 @@ int run_scaling(const Model& model, const Packing& packing, long steps, int thre
   const auto timed_jobs = [&] {
     return rate(jobs.size(), [&] {
       std::vector<std::thread> run;
-      for (auto& w : jobs) run.emplace_back([&, world = w.get()] { advance(*world, steps, deform, lz0); });
+      for (auto& w : jobs) run.emplace_back([&, world = w.get()] { advance(*world, steps, drive, lz0); });
       for (auto& t : run) t.join();
     });
   };
@@ -313,7 +329,7 @@ int run_costs(const Model& base, const Packing& packing, long steps, int threads
 struct Options {
   std::string scene = std::string(SANDCELL_BENCH_SCENE_DIR) + "/dense-20k.txt";
   double steps = 2000, threads = 0, rounds = 3, sort_interval = 1000;  // threads 0: all hardware threads
-  double deform = 0.0, vchar = 0.0;
+  double deform = 0.0, vchar = 0.0, shear = 0.0;
   bool json = false, serial = false, costs = false, scaling = false, probe = false, compat = false;
   std::string partition = "adaptive", rolling = "epsd2", tangential = "history", normal;
   std::vector<std::string> params;  // --param NAME=VALUE: a normal law's parameter (the law registry's)
@@ -356,6 +372,9 @@ std::optional<int> parse_command_line(int argc, char** argv, Options& o, Model& 
   app.add_option("--threads", o.threads, "threads (default: all hardware threads)")
       ->type_name("T")
       ->check(number_in(1, 1024));
+  app.add_option("--shear", o.shear, "simple shear: L_xz = RATE (1/s), the cell tilting and flipping")
+      ->type_name("RATE")
+      ->check(CLI::Range(-1e6, 1e6));
   app.add_option("--deform", o.deform, "scene B: z shortened at this engineering strain rate, 1/s")
       ->type_name("RATE")
       ->check(number_in(0, 1e6));
@@ -444,6 +463,7 @@ static int bench_main(int argc, char** argv) {
   const long steps = static_cast<long>(o.steps);
   const int threads = static_cast<int>(o.threads);
   const double deform = o.deform;
+  const Drive drive{o.deform, o.shear};
   const bool json = o.json, serial = o.serial, costs = o.costs, scaling = o.scaling, probe = o.probe;
   const Partition partition = *partition_from_name(o.partition);
   const int rounds = static_cast<int>(o.rounds);
@@ -461,7 +481,7 @@ static int bench_main(int argc, char** argv) {
     usage_error(e.what());
   }
   if (costs) return run_costs(model, packing, steps, threads, rounds);
-  if (scaling) return run_scaling(model, packing, steps, threads, rounds, deform, json, probe, partition);
+  if (scaling) return run_scaling(model, packing, steps, threads, rounds, drive, json, probe, partition);
   if (probe) {  // the machine alone (probe.hpp), for scripts that time other programs in the same rounds
     const int t = threads > 0 ? threads : available_cpus();
     const double a1 = bench::alu_rate(1, 0.2);
@@ -482,7 +502,7 @@ static int bench_main(int argc, char** argv) {
 
   world.reset_timers();
   const auto t0 = std::chrono::steady_clock::now();
-  advance(world, steps, deform, lz0);
+  advance(world, steps, drive, lz0);
   const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 
   const Mat3 s1 = contact_stress(world.state(), world.executor());
@@ -500,7 +520,7 @@ static int bench_main(int argc, char** argv) {
   if (json) {
     std::printf(
         "{\"scene\": \"%s\", \"arch\": \"%s\", \"particles\": %zu, \"steps\": %ld, \"threads\": %d, \"backend\": \"%s\",\n"
-        " \"deform\": %.6g, \"compat\": %s, \"wall_s\": %.6f, \"particle_steps_per_s\": %.6e,\n"
+        " \"deform\": %.6g, \"shear\": %.6g, \"compat\": %s, \"wall_s\": %.6f, \"particle_steps_per_s\": %.6e,\n"
         " \"contacts_per_particle_start\": %.6f, \"contacts_per_particle\": %.6f, \"rebuilds\": %llu,\n"
         " \"peak_mib\": %.1f, \"mean_stress_start_pa\": %.6e, \"mean_stress_pa\": %.6e,\n"
         " \"stress_pa\": [%.6e, %.6e, %.6e, %.6e, %.6e, %.6e], \"lz\": %.9f, \"digest\": \"%016llx\",\n"
@@ -508,7 +528,7 @@ static int bench_main(int argc, char** argv) {
         "\"trials\": %llu},\n"
         " \"system_s\": {",
         scene.c_str(), std::string(build_arch()).c_str(), n, steps, world.executor().threads(),
-        serial ? "serial" : "tbb", deform, model.contact.liggghts_compat ? "true" : "false", wall, rate, 2.0 * c0 / n,
+        serial ? "serial" : "tbb", deform, drive.shear, model.contact.liggghts_compat ? "true" : "false", wall, rate, 2.0 * c0 / n,
         2.0 * c1 / n, static_cast<unsigned long long>(builds), peak_mib, s0.trace() / 3, s1.trace() / 3, s1(0, 0),
         s1(1, 1), s1(2, 2), s1(0, 1), s1(0, 2), s1(1, 2), world.state().cell.length[2], digest, partition_used.c_str(),
         static_cast<unsigned long long>(ps.owner), static_cast<unsigned long long>(ps.dynamic),
@@ -518,7 +538,8 @@ static int bench_main(int argc, char** argv) {
     std::printf("}}\n");
     return 0;
   }
-  std::printf("scene            %s%s\n", scene.c_str(), deform > 0 ? " (deforming, scene B)" : " (fixed box, scene A)");
+  std::printf("scene            %s%s%s\n", scene.c_str(), deform > 0 ? " (deforming, scene B)" : " (fixed box, scene A)",
+              drive.shear != 0.0 ? ", simple shear (a tilted cell)" : "");
   std::printf("particles        %zu\n", n);
   std::printf("steps            %ld\n", steps);
   std::printf("threads          %d (%s)\n", world.executor().threads(), serial ? "serial backend" : "tbb");

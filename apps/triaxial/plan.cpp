@@ -11,6 +11,21 @@ namespace sandcell::triaxial {
 
 namespace {
 
+// The steps a test takes, estimated: shear.steps (path strain); the rotation's ramp and turn; the
+// simple shears' gamma (and the axial paths' strain), plus the ramp, at the rate at p0.
+double test_steps(const Plan& plan, const TestSpec& t, double max_strain) {
+  const Config& c = plan.config;
+  const double dt = plan.base.dt;
+  switch (t.path) {
+    case ShearPath::strain: return double(c.shear.steps);
+    case ShearPath::rotation: return (c.rotation.ramp_time + c.rotation.angle / c.rotation.rate) / dt;
+    case ShearPath::simple_shear:
+    case ShearPath::simple_shear_cv:
+      return (c.shear.max_shear_strain + c.shear.ramp_strain) / (axial_rate(plan, t.p0) * dt);
+    default: return (max_strain + c.shear.ramp_strain) / (axial_rate(plan, t.p0) * dt);
+  }
+}
+
 // The cell must stay wider than 2 r_max + skin through the test: at a dense random packing
 // (solid fraction <= 0.64) after preparation, then shortened by the axial strain. Throws
 // ConfigError naming the key at fault.
@@ -25,6 +40,11 @@ void check_cell_width(const Plan& plan, const std::vector<double>& diameters, do
     if (t.path == ShearPath::strain) {
       const Vec3 r = config.shear.strain_rates;
       narrowest = std::min(narrowest, side * std::exp(-r.maxCoeff() * m.dt * double(config.shear.steps)));
+    } else if (t.path == ShearPath::simple_shear || t.path == ShearPath::simple_shear_cv ||
+               t.path == ShearPath::rotation) {
+      // A sheared cube whose tilts the flips keep within half a length: its faces at least 1/sqrt(1.25)
+      // of the side apart (one tilt; the rotation's cell deforms by its own response, checked as it runs).
+      narrowest = std::min(narrowest, side / std::sqrt(1.25));
     } else {
       narrowest = std::min(narrowest, side * std::exp(-max_strain));
     }
@@ -55,8 +75,13 @@ void check_run_lengths(const Plan& plan, double max_strain) {
   const Model& m = plan.base;
   for (const TestSpec& t : config.tests) {
     if (t.path == ShearPath::strain) continue;
-    const double rate = axial_rate(plan, t.p0);
-    const double steps = max_strain / (rate * m.dt);
+    const double rate = t.path == ShearPath::rotation ? 0.0 : axial_rate(plan, t.p0);
+    const double steps = test_steps(plan, t, max_strain) - (t.path == ShearPath::rotation ? 0.0
+                                                            : config.shear.ramp_strain / (rate * m.dt));
+    if (t.path == ShearPath::rotation && !(steps < 1e10))
+      throw ConfigError(src + ": rotation.rate = " + num(config.rotation.rate) + " degrees/s: the test would take " +
+                        num(steps, "%.2g") + " steps; allowed: up to 1e10");
+    if (t.path == ShearPath::rotation) continue;
     if (!(steps < 1e10))
       throw ConfigError(
           src + ": " +
@@ -95,6 +120,7 @@ void check_strain_per_step(const Plan& plan) {
                               " of strain a step (at dt = " + num(dt) + " s: a rate up to " +
                               num(k_max_strain_per_step / dt, "%.3g") + " 1/s)";
   for (const TestSpec& t : config.tests) {
+    if (t.path == ShearPath::rotation) continue;  // stress controlled: its rates are the servo's, capped
     if (t.path == ShearPath::strain) {
       for (int a = 0; a < 3; ++a)
         if (std::abs(config.shear.strain_rates[a]) * dt > k_max_strain_per_step)
@@ -113,21 +139,19 @@ void check_strain_per_step(const Plan& plan) {
 // The size of the results files, estimated before anything runs (measured: 300 and 1,200 spheres,
 // a snapshot every 10 steps, within 5 % above): a snapshot is 14 doubles a sphere
 // (ResultsFile::write_snapshot) and ~4 KiB of HDF5 headers (2.2 KiB) and XDMF entry (1.6 KiB); a
-// series row 46 doubles; a file ~1 MiB of first chunks (32 KiB for each of ~29 datasets). A test
+// series row 61 doubles; a file ~1 MiB of first chunks (32 KiB for each of ~32 datasets). A test
 // runs to max_axial_strain (+ ramp_strain for the ramp) at its rate at p0 (shear.steps on path
 // "strain"), an upper bound with stop_at_critical; a preparation at least the shrink of its cloud
 // at prepare.max_rate. Above output.max_size_gib the run is refused naming the interval that
 // costs most; above 1 GiB it is warned about at the start. Throws ConfigError.
 void estimate_output(Plan& plan, std::size_t spheres, double max_strain) {
-  constexpr double k_snapshot_sphere = 14 * 8, k_snapshot_header = 4096, k_row = 46 * 8, k_file = 1 << 20;
+  constexpr double k_snapshot_sphere = 14 * 8, k_snapshot_header = 4096, k_row = 61 * 8, k_file = 1 << 20;
   constexpr double k_warn = double(1 << 30);  // 1 GiB
   const Config& config = plan.config;
   const OutputConfig& o = config.output;
   double snapshot_bytes = 0.0, row_bytes = 0.0, longest = 0.0;  // longest: steps of the longest test
   for (const TestSpec& t : config.tests) {
-    const double steps = t.path == ShearPath::strain
-                             ? double(config.shear.steps)
-                             : (max_strain + config.shear.ramp_strain) / (axial_rate(plan, t.p0) * plan.base.dt);
+    const double steps = test_steps(plan, t, max_strain);
     longest = std::max(longest, steps);
     const double snapshots = 2.0 + (o.snapshot_interval > 0 ? std::floor(steps / double(o.snapshot_interval)) : 0.0);
     snapshot_bytes += snapshots * (k_snapshot_sphere * double(spheres) + k_snapshot_header);

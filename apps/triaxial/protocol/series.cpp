@@ -54,6 +54,15 @@ constexpr SeriesColumn k_columns[] = {
     {"rotation", "degrees (the principal axes' turn off the cell axes, 1/2 asin(2 |tau| / (s1 - s3)))", 1,
      [](S, M m, double, double* o) { *o = principal_rotation_deg(m.stress); }},
     {"shear_ratio", "- (largest |shear stress| / p)", 1, [](S, M m, double, double* o) { *o = shear_ratio(m.stress); }},
+    {"deformation", "- (F = H N H0^-1 since the test's start, row-major: xx xy xz yx yy yz zx zy zz)", 9,
+     [](S s, M, double, double* o) {
+       const Mat3 f = s.cell.deformation();
+       for (int k = 0; k < 9; ++k) o[k] = f(k / 3, k % 3);
+     }},
+    {"cell_tilt", "m (xy xz yz of the lattice basis H, reduced by flips)", 3,
+     [](S s, M, double, double* o) { three(s.cell.tilt, o); }},
+    {"shear_strain_rate", "1/s (xy xz yz: the engineering rates -L_ab, compression positive)", 3,
+     [](S s, M, double, double* o) { three(Vec3::Zero() - s.cell.shear_rate, o); }},
     {"wall_time", "s", 1, [](S, M, double wall, double* o) { *o = wall; }},
 };
 
@@ -62,7 +71,7 @@ constexpr SeriesColumn k_columns[] = {
 std::span<const SeriesColumn> series_columns() { return k_columns; }
 
 void append_row(ResultsFile& results, const State& state, const Measures& m, double wall) {
-  double v[6];
+  double v[9];
   for (const SeriesColumn& c : k_columns) {
     c.value(state, m, wall, v);
     if (c.width == 1)

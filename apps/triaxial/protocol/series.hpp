@@ -17,7 +17,7 @@ namespace sandcell::triaxial {
 struct SeriesColumn {
   const char* name;
   const char* units;
-  std::size_t width;  // 1, 3 or 6
+  std::size_t width;  // 1, 3, 6 or 9
   void (*value)(const State& state, const Measures& m, double wall, double* out);
 };
 
