@@ -73,6 +73,18 @@ double PathWatch::worst(const std::string& q) const {
   throw std::invalid_argument("PathWatch::worst: no quantity '" + q + "'");
 }
 
+// The travel the windows count, as text: the window and where the row is (axial strain, the simple
+// shears' gamma, the rotation's angle turned).
+std::pair<std::string, std::string> PathWatch::travel_text(const PathRow& row) const {
+  const bool rotation = servo_.path == StressPath::rotation;
+  const bool simple = servo_.path == StressPath::simple_shear || servo_.path == StressPath::simple_shear_cv;
+  if (rotation)
+    return {fmt("%g deg", tol_.window * 180.0 / std::numbers::pi) + " of rotation",
+            "alpha - alpha0 = " + fmt("%.1f deg", row.eps1 * 180.0 / std::numbers::pi)};
+  if (simple) return {fmt("%g %%", 100.0 * tol_.window) + " of shear strain", "gamma = " + fmt("%.2f %%", 100.0 * row.eps1)};
+  return {fmt("%g %%", 100.0 * tol_.window) + " of axial strain", "eps1 = " + fmt("%.2f %%", 100.0 * row.eps1)};
+}
+
 void PathWatch::fail(const char* quantity, double value, double tolerance, const PathRow& row) {
   if (failure_ || !(value > tolerance)) return;
   PathFailure f;
@@ -88,15 +100,7 @@ void PathWatch::fail(const char* quantity, double value, double tolerance, const
                                  : q == "b"        ? fmt("%.3f", value) + " off its target"
                                                    : fmt("%.3g", value);
   const std::string tol_text = relative ? fmt("%g %%", 100.0 * tolerance) : fmt("%g", tolerance);
-  // The travel the windows count: axial strain, the simple shears' gamma, the rotation's angle (rad).
-  const bool rotation = servo_.path == StressPath::rotation;
-  const bool simple = servo_.path == StressPath::simple_shear || servo_.path == StressPath::simple_shear_cv;
-  const std::string window = rotation ? fmt("%g deg", tol_.window * 180.0 / std::numbers::pi) + " of rotation"
-                             : simple ? fmt("%g %%", 100.0 * tol_.window) + " of shear strain"
-                                      : fmt("%g %%", 100.0 * tol_.window) + " of axial strain";
-  const std::string where = rotation ? "alpha - alpha0 = " + fmt("%.1f deg", row.eps1 * 180.0 / std::numbers::pi)
-                            : simple ? "gamma = " + fmt("%.2f %%", 100.0 * row.eps1)
-                                     : "eps1 = " + fmt("%.2f %%", 100.0 * row.eps1);
+  const auto [window, where] = travel_text(row);
   const std::string over = q == "overlap" ? "at this row" : "over the last " + window;
   f.message = "left its stress path: " + q + " " + value_text + " " + over + " (tolerance " + tol_text +
               ") at step " + std::to_string(row.step) + ", " + where;
@@ -136,9 +140,9 @@ void PathWatch::judge(const PathRow& row) {
     f.step = row.step;
     f.eps1 = row.eps1;
     f.message = "the path cannot be judged: " + std::to_string(window_.size()) + " series row(s) over the last " +
-                fmt("%g %%", 100.0 * tol_.window) + " of axial strain (at least " + std::to_string(tol_.rows) +
-                ": lower output.series_interval or the strain rate) at step " + std::to_string(row.step) +
-                ", eps1 = " + fmt("%.2f %%", 100.0 * row.eps1);
+                travel_text(row).first + " (at least " + std::to_string(tol_.rows) +
+                ": lower output.series_interval or the strain rate) at step " + std::to_string(row.step) + ", " +
+                travel_text(row).second;
     failure_ = f;
     return;
   }

@@ -32,6 +32,7 @@
 #include <deque>
 #include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
 namespace sandcell {
@@ -116,6 +117,7 @@ class PathWatch {
     double time = 0.0;
   };
   void judge_shearing(const Mat3& mean, const PathRow& row);
+  std::pair<std::string, std::string> travel_text(const PathRow& row) const;
   std::deque<Entry> window_;
   double travel_ = 0.0, last_eps1_ = 0.0, begin_ = -1.0;
   bool first_row_ = true;

@@ -127,6 +127,23 @@ TEST_CASE("triaxial: each class of bad input exits 2 naming the key, and clobber
        "allowed: <= output.max_size_gib = 0.05 GiB: raise the interval to 34"},
       {"a size limit below what the intervals as set write", with("output", "max_size_gib = 1e-6"),
        "output.max_size_gib = 1e-06: below the ~"},
+      // The shearing cell (issue 44): each key must act on some test, and the paths need theirs.
+      {"a cell shear that is neither fixed nor free", base + "[cell]\nshear = \"loose\"\n",
+       "cell.shear = \"loose\": allowed: \"fixed\" \"free\""},
+      {"a free cell with no servo to hold it",
+       replaced(replaced(base, "strain_rate = 2.0", "strain_rates = [1.0, 0, 0]\nsteps = 100"),
+                "path = \"constant_p\"\nb = 0.5", "path = \"strain\"") +
+           "[cell]\nshear = \"free\"\n",
+       "cell.shear: no test of tests.path lets the cell's shear components be fixed or free"},
+      {"a simple shear without its end", replaced(base, "path = \"constant_p\"\nb = 0.5", "path = \"simple_shear\""),
+       "shear.max_shear_strain: not given; the simple shear paths need it"},
+      {"a shear strain end no test reaches", with("shear", "max_shear_strain = 1.0"),
+       "shear.max_shear_strain = 1: only the simple shear paths stop at a shear strain"},
+      {"a rotation without its rate", replaced(base, "path = \"constant_p\"", "path = \"rotation\"") +
+                                          "[rotation]\neta = 0.3\nramp_time = 0.01\n",
+       "rotation.eta = 0.3, rotation.rate = 0, rotation.ramp_time = 0.01: tests.path = \"rotation\" needs all three"},
+      {"a rotation table with no rotation test", base + "[rotation]\neta = 0.3\n",
+       "[rotation]: no test of tests.path is \"rotation\""},
   };
   for (const Case& c : cases) {
     const std::string what = c.what;
