@@ -765,6 +765,21 @@ def run(opt):
         os.makedirs(opt.out, exist_ok=True)
     except OSError as exc:
         raise InputError(f"cannot create the output folder {opt.out}: {exc.strerror}") from None
+    # The paths of a shearing cell (simple shear, rotation) have no axial strain to fit a critical
+    # state line or M(theta) on: their own figures (shearing.py), apart from the triaxial analysis.
+    from . import shearing
+    shearing_tests = [t for t in tests if t["path"] in shearing.SHEARING_PATHS]
+    tests = [t for t in tests if t["path"] not in shearing.SHEARING_PATHS]
+    if shearing_tests:
+        from . import plots
+        shear_figs = []
+        shearing.figures(plots.pyplot(), shearing_tests, opt.out, opt.title, shear_figs, plots._save)
+        with open(os.path.join(opt.out, "shearing.md"), "w", encoding="utf-8") as fh:
+            fh.write(f"# {opt.title}: the paths of a shearing cell\n\n")
+            for t in shearing_tests:
+                fh.write(f"- {t['name']} ({t['path']}): ![{t['name']}](shearing-{t['name']}.png)\n")
+        if not tests:
+            return {"shearing": shear_figs}, shearing_tests
     res = analyze_tests(tests, opt)
     res["excluded"] = excluded
     for t in excluded:  # whether it had reached the critical state, for the table of paths only
@@ -800,7 +815,7 @@ def main(argv=None):
         print(f"analyze.py: error: {exc} (needs numpy, scipy, matplotlib and h5py)",
               file=sys.stderr)
         return 1
-    crit = sum(t["critical"]["reached"] for t in tests)
+    crit = sum(t["critical"]["reached"] for t in tests if "critical" in t)  # shearing paths have none
     print(f"analyze.py: {len(tests)} test(s), {crit} at the critical state; "
           f"report: {os.path.join(opt.out, 'report.md')}")
     return 0

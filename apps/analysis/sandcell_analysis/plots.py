@@ -256,6 +256,13 @@ def figure_dilatancy(plt, tests, res, out, title, files):
 def plot_run(results, png):
     """The figure of one run (plot_triaxial.py, drawn after each test): q, q/p, eps_v and e against
     eps_1 (soil convention, compression positive)."""
+    from .results import open_results, attr
+    from . import shearing
+    with open_results(results) as f:
+        path = attr(f, "path")
+    if path in shearing.SHEARING_PATHS:  # simple shear or rotation: their own axes
+        shearing.plot_run(results, png, path, read_job(results))
+        return
     plt = pyplot()
     s = read_columns(results, ("strain", "q", "p", "eps_v", "e"))
     eps1 = 100.0 * s["strain"][:, 0]
