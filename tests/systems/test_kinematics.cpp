@@ -83,7 +83,7 @@ TEST_CASE("log_strain: simple shear against the closed form, large and small gam
   }
 }
 
-TEST_CASE("log_strain: a pure stretch is -ln of the stretches exactly; the two frame rules") {
+TEST_CASE("log_strain: a pure stretch is -ln of the stretches exactly, and the two frame rules") {
   const Vec3 stretch(0.9, 1.05, 1.2);
   const Mat3 f = stretch.asDiagonal();
   const Mat3 e = log_strain(f);
@@ -124,7 +124,7 @@ TEST_CASE("principal: values descending and directions of a rotated diagonal ten
   CHECK(d.directions == axes);
 }
 
-TEST_CASE("alpha and axes_rotation_deg on the rotation path's stress; agreement with the watchdog's angle") {
+TEST_CASE("alpha and axes_rotation_deg on the rotation path's stress, and agreement with the watchdog's angle") {
   // rotated_stress puts sigma1 at alpha from x toward z and sigma2 on y: alpha comes back exactly
   // up to rounding (atan2 of computed sines and cosines: 1e-9 degrees covers it), in (-90, 90].
   for (double deg : {-80.0, -45.0, 0.0, 10.0, 30.0, 60.0, 89.5, 90.0, 100.0, 170.0}) {
