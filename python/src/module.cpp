@@ -105,13 +105,6 @@ std::array<AxisControl, 3> parse_shear_controls(const std::string& key, const st
   return c;
 }
 
-// A shear 3-vector (xy, xz, yz) of finite numbers, its entries named by component.
-Vec3 finite_shear(const std::string& key, const py::handle& value, const char* unit) {
-  const Vec3 v = vec3(key, value);
-  for (int k = 0; k < 3; ++k) finite(key + "[" + k_shear_names[k] + "]", v[k], unit);
-  return v;
-}
-
 // A 3-vector of integers (the cell's flip counts), as doubles.
 Vec3 integers3(const std::string& key, const py::handle& value) {
   const Vec3 v = vec3(key, value);
@@ -238,6 +231,12 @@ double non_negative(const std::string& key, double v, const char* unit) {
 
 double finite(const std::string& key, double v, const char* what) {
   if (!std::isfinite(v)) throw std::invalid_argument(key + " = " + number(v) + ": must be finite " + what);
+  return v;
+}
+
+Vec3 finite_shear(const std::string& key, const py::handle& value, const char* unit) {
+  const Vec3 v = vec3(key, value);
+  for (int k = 0; k < 3; ++k) finite(key + "[" + k_shear_names[k] + "]", v[k], unit);
   return v;
 }
 

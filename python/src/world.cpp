@@ -474,11 +474,7 @@ void bind_world(py::module_& m) {
           "set_cell_shear_rate",
           [](PyWorld& w, const py::object& v) {
             w.check("World.set_cell_shear_rate");
-            const Vec3 r = vec3("shear_rate", v);
-            static constexpr const char* names[3] = {"xy", "xz", "yz"};
-            for (int k = 0; k < 3; ++k)
-              finite(std::string("shear_rate[") + names[k] + "]", r[k], "(1/s, L_ab, tension positive)");
-            w.world->state().cell.shear_rate = r;
+            w.world->state().cell.shear_rate = finite_shear("shear_rate", v, "(1/s, L_ab, tension positive)");
             w.snapshot_stale = true;  // a change that replaying steps would not make
           },
           py::arg("shear_rate"),
