@@ -103,8 +103,30 @@ Measures measure(const Model& model, const State& state, Executor& exec, const M
     m.strain_engineering[a] = 1.0 - cell.length[a] / cell.length0[a];
     m.strain_rate[a] = -cell.rate[a];
   }
-  const Vec3& e = m.strain;
-  m.eps_v = e.sum();
+  // The tensors (systems/kinematics.hpp); a diagonal deformation takes the lengths' arithmetic, so
+  // its strain tensor is diag(strain) bitwise and its principal values are the strains sorted.
+  const bool diagonal = diagonal_deformation(cell);
+  if (diagonal) {
+    m.deformation = Mat3::Zero();
+    for (int a = 0; a < 3; ++a) m.deformation(a, a) = cell.length[a] / cell.length0[a];
+  } else {
+    m.deformation = cell.deformation();
+  }
+  m.strain_tensor = cell_strain(cell);
+  m.strain_rate_tensor = strain_rate_tensor(cell.velocity_gradient());
+  m.gamma = Vec3::Zero() - Vec3(m.deformation(0, 1), m.deformation(0, 2), m.deformation(1, 2));  // 0 - 0 = +0
+  const Principal ps = principal(m.stress), pe = principal(m.strain_tensor);
+  m.principal_stress = ps.values;
+  m.stress_directions = ps.directions;
+  m.principal_strain = pe.values;
+  m.strain_directions = pe.directions;
+  m.alpha = alpha_deg(m.stress);
+  m.noncoaxiality = noncoaxiality_deg(m.stress, m.strain_rate_tensor);
+
+  // eps_v from the lengths in every case: -ln det F = -ln(V / V0), the trace of the strain tensor.
+  // eps_q from the principal strains; for a diagonal deformation from the axes' strains as always.
+  const Vec3& e = diagonal ? m.strain : m.principal_strain;
+  m.eps_v = m.strain.sum();
   m.eps_q = std::sqrt(2.0) / 3.0 *
             std::sqrt((e[0] - e[1]) * (e[0] - e[1]) + (e[1] - e[2]) * (e[1] - e[2]) + (e[2] - e[0]) * (e[2] - e[0]));
 
@@ -192,8 +214,10 @@ Measures measure(const Model& model, const State& state, Executor& exec, const M
   m.unbalanced = force_sum > 0.0 ? (net / static_cast<double>(n)) / (force_sum / static_cast<double>(m.contacts)) : 0.0;
 
   if (options.d50 > 0.0 && options.density > 0.0 && m.inv.p > 0.0) {
-    // gamma_dot = eps_dot_1 - eps_dot_3 of the principal strain rates: largest minus smallest.
-    const double shear_rate = m.strain_rate.maxCoeff() - m.strain_rate.minCoeff();
+    // gamma_dot = eps_dot_1 - eps_dot_3 of the principal strain rates: largest minus smallest (a
+    // shearing cell's from the tensor: in simple shear, the engineering rate itself).
+    const Vec3 rates = cell.shear_rate.isZero(0.0) ? m.strain_rate : principal(m.strain_rate_tensor).values;
+    const double shear_rate = rates.maxCoeff() - rates.minCoeff();
     m.inertial_number = shear_rate * options.d50 * std::sqrt(options.density / m.inv.p);
     m.inertial_number_axial = std::abs(m.strain_rate[0]) * options.d50 * std::sqrt(options.density / m.inv.p);
   }

@@ -9,8 +9,13 @@
 // Reads positions, the pair list, contact forces, the cell (and velocities and masses for the
 // kinetic part); writes the `stress` scratch component. Deterministic reduction with fixed grain.
 //
-// measure() computes every derived quantity, outside the step, on the steps an output needs them.
+// measure() computes every derived quantity, outside the step, on the steps an output needs them;
+// its tensor measures (strain tensor, principal directions, alpha, non-coaxiality) are the pure
+// functions of systems/kinematics.hpp. An orthorhombic cell's measures keep the arithmetic they had
+// before the cell could shear (bitwise); a sheared cell's eps_q and inertial number come from the
+// tensors.
 #include "engine/system.hpp"
+#include "systems/kinematics.hpp"
 
 #include <cstddef>
 #include <span>
@@ -53,16 +58,35 @@ struct StressInvariants {
 /// aligned with the cell axes).
 StressInvariants invariants(const Mat3& stress);
 
-/// What measure() reports. Strains are logarithmic from cell.length0, compression positive.
+/// What measure() reports. Strains are logarithmic from the cell's reference (length0, tilt0),
+/// compression positive. `strain` is that of the cell's edge lengths L_k (the diagonal of H); for a
+/// sheared cell the strain is the tensor `strain_tensor`, whose diagonal differs from it.
 struct Measures {
   Mat3 stress = Mat3::Zero();          // Pa, symmetrized contact (+ kinetic, if asked) stress
   Mat3 contact_stress = Mat3::Zero();  // Pa, contact part only
   StressInvariants inv;
   Vec3 strain = Vec3::Zero();              // -, eps_k = -ln(L_k / L0_k)
   Vec3 strain_engineering = Vec3::Zero();  // -, 1 - L_k / L0_k
-  Vec3 strain_rate = Vec3::Zero();         // 1/s, -D_kk
-  double eps_v = 0.0;                      // -, eps1 + eps2 + eps3
-  double eps_q = 0.0;                      // -, sqrt(2)/3 sqrt((e1-e2)^2 + (e2-e3)^2 + (e3-e1)^2)
+  Vec3 strain_rate = Vec3::Zero();         // 1/s, -D_kk (= -L_kk: the diagonal of strain_rate_tensor)
+  double eps_v = 0.0;                      // -, eps1 + eps2 + eps3 (= -ln det F = trace of strain_tensor, tilted or not)
+  double eps_q = 0.0;                      // -, sqrt(2)/3 sqrt((e1-e2)^2 + (e2-e3)^2 + (e3-e1)^2): e_k = strain, or
+                                           // the principal_strain when the deformation is not diagonal (sheared)
+  // Tensor measures (systems/kinematics.hpp). For a cell that never sheared (diagonal F) the strain
+  // tensor is diag(strain) bitwise.
+  Mat3 deformation = Mat3::Identity();        // -, F = H N H0^-1 since the reference (Cell::deformation);
+                                              // diag(L_k / L0_k) exactly when diagonal
+  Mat3 strain_tensor = Mat3::Zero();          // -, -ln V, V = sqrt(F F^T) (log_strain)
+  Mat3 strain_rate_tensor = Mat3::Zero();     // 1/s, -(L + L^T)/2 of the cell's velocity gradient L
+  Vec3 gamma = Vec3::Zero();                  // -, engineering shear strains (xy, xz, yz) = -(F_xy, F_xz, F_yz):
+                                              // in simple shear (fixed lengths) the time integral of the servo's
+                                              // shear_strain_rate; F continues through flips
+  Vec3 principal_stress = Vec3::Zero();       // Pa, principal values of `stress`, descending (principal())
+  Mat3 stress_directions = Mat3::Identity();  // -, columns: their unit directions
+  Vec3 principal_strain = Vec3::Zero();       // -, principal values of strain_tensor, descending
+  Mat3 strain_directions = Mat3::Identity();  // -, columns: their unit directions
+  double alpha = 0.0;           // deg, in (-90, 90]: sigma1's direction in the xz plane from x toward z (alpha_deg)
+  double noncoaxiality = 0.0;   // deg, in [0, 90]: between the major principal directions of stress and
+                                // strain_rate_tensor (0 while the cell does not deform)
   double void_ratio = 0.0;                 // -, V / V_s - 1
   double solid_fraction = 0.0;             // -, V_s / V
   std::size_t contacts = 0;                // touching pairs (overlap > 0)
@@ -75,7 +99,8 @@ struct Measures {
   double elastic_energy = 0.0;             // J, stored in the contacts: normal Hertz 8/15 E* sqrt(R*) delta^(5/2),
                                            // tangential |F_t^el|^2 / (2 k_t), rolling |M|^2 / (2 k_r)
   double max_overlap_ratio = 0.0;          // -, largest delta / min(R_i, R_j) over touching contacts
-  double inertial_number = 0.0;            // -, (eps_dot_1 - eps_dot_3) d50 sqrt(rho / p)
+  double inertial_number = 0.0;            // -, (eps_dot_1 - eps_dot_3) d50 sqrt(rho / p), principal rates (of
+                                           // strain_rate_tensor when the cell shears)
   double inertial_number_axial = 0.0;      // -, |eps_dot_1| d50 sqrt(rho / p): axis 1 alone, the form a set
                                            // inertial number (ServoSettings::inertial_number) controls
 };

@@ -28,6 +28,8 @@ double positive(const std::string& key, double v, const char* unit);
 double non_negative(const std::string& key, double v, const char* unit);
 /// v itself when finite: "key = v: must be finite <what>".
 double finite(const std::string& key, double v, const char* what);
+/// A shear 3-vector (xy, xz, yz) of finite numbers: "key[xz] = nan: must be finite <unit>".
+Vec3 finite_shear(const std::string& key, const py::handle& value, const char* unit);
 /// A number as the messages print it (%g: 1e+05, inf, nan).
 std::string number(double v);
 

@@ -8,6 +8,7 @@
 #include "protocol/series.hpp"
 #include "systems/contact_pass.hpp"
 #include "systems/homogenizer.hpp"
+#include "systems/kinematics.hpp"
 #include "systems/path_watch.hpp"
 #include "systems/servo.hpp"
 #include "systems/stress_paths.hpp"
@@ -82,6 +83,42 @@ std::array<AxisControl, 3> parse_controls(const std::string& key, const std::vec
 }
 std::vector<std::string> control_names(const std::array<AxisControl, 3>& c) {
   return {k_controls.name(c[0]), k_controls.name(c[1]), k_controls.name(c[2])};
+}
+
+// The shear components xy, xz, yz, as the engine's messages name them (systems/servo.cpp).
+constexpr const char* k_shear_names[3] = {"xy", "xz", "yz"};
+// A shear component is strain or stress controlled (a volume constraint is the axes' alone).
+const Names<AxisControl> k_shear_controls{{{"strain", AxisControl::strain}, {"stress", AxisControl::stress}}};
+
+std::array<AxisControl, 3> parse_shear_controls(const std::string& key, const std::vector<std::string>& names) {
+  if (names.size() != 3)
+    throw std::invalid_argument(key + ": " + std::to_string(names.size()) +
+                                " entries: must be 3 (one per shear component xy, xz, yz)");
+  std::array<AxisControl, 3> c{};
+  for (int k = 0; k < 3; ++k) {
+    const std::string item = key + "[" + k_shear_names[k] + "]";
+    if (names[k] == "volume")
+      throw std::invalid_argument(item + " = 'volume': a shear component is strain or stress controlled; allowed: "
+                                         "strain, stress");
+    c[k] = k_shear_controls.parse(item, names[k]);
+  }
+  return c;
+}
+
+// A 3-vector of integers (the cell's flip counts), as doubles.
+Vec3 integers3(const std::string& key, const py::handle& value) {
+  const Vec3 v = vec3(key, value);
+  for (int k = 0; k < 3; ++k)
+    if (!std::isfinite(v[k]) || v[k] != std::round(v[k]) || std::abs(v[k]) > 1e9)
+      throw std::invalid_argument(key + "[" + k_shear_names[k] + "] = " + number(v[k]) +
+                                  ": must be an integer (flips of the cell's lattice basis, |n| <= 1e9)");
+  return v;
+}
+
+// A 3x3 tensor of finite numbers, for the kinematic functions.
+Mat3 finite_tensor(const std::string& key, const Mat3& m) {
+  if (!m.allFinite()) throw std::invalid_argument(key + ": must be a 3x3 tensor of finite numbers");
+  return m;
 }
 
 // A path function given as servo.custom: a CyclicPath, a C++ PathFunction or a Python callable.
@@ -197,25 +234,46 @@ double finite(const std::string& key, double v, const char* what) {
   return v;
 }
 
+Vec3 finite_shear(const std::string& key, const py::handle& value, const char* unit) {
+  const Vec3 v = vec3(key, value);
+  for (int k = 0; k < 3; ++k) finite(key + "[" + k_shear_names[k] + "]", v[k], unit);
+  return v;
+}
+
+namespace {
+// The names of a sequence of strings (a path result's controls), or ValueError naming the key.
+std::vector<std::string> control_strings(const std::string& key, const py::handle& value, const char* allowed) {
+  const std::string message = key + ": must be a sequence of 3 of " + allowed;
+  if (py::isinstance<py::str>(value) || !py::isinstance<py::sequence>(value)) throw std::invalid_argument(message);
+  std::vector<std::string> names;
+  for (const py::handle h : value.cast<py::sequence>()) {
+    if (!py::isinstance<py::str>(h)) throw std::invalid_argument(message);
+    names.push_back(h.cast<std::string>());
+  }
+  return names;
+}
+}  // namespace
+
 PathTargets targets_from_python(const py::handle& result) {
   if (py::isinstance<PathTargets>(result)) return result.cast<PathTargets>();
-  if (py::isinstance<py::tuple>(result) && py::len(result) == 2) {
+  const std::size_t n = py::isinstance<py::tuple>(result) ? py::len(result) : 0;
+  if (n == 2 || n == 4) {
     const py::tuple t = result.cast<py::tuple>();
     PathTargets out;
-    if (py::isinstance<py::str>(t[0]) || !py::isinstance<py::sequence>(t[0]))
-      throw std::invalid_argument("path result control: must be a sequence of 3 of strain, stress, volume");
-    std::vector<std::string> names;
-    for (const py::handle h : t[0].cast<py::sequence>()) {
-      if (!py::isinstance<py::str>(h))
-        throw std::invalid_argument("path result control: must be a sequence of 3 of strain, stress, volume");
-      names.push_back(h.cast<std::string>());
-    }
-    out.control = parse_controls("path result control", names);
+    out.control =
+        parse_controls("path result control", control_strings("path result control", t[0], "strain, stress, volume"));
     out.value = vec3("path result value", t[1]);
+    if (n == 4) {
+      out.shear_control = parse_shear_controls(
+          "path result shear_control", control_strings("path result shear_control", t[2], "strain, stress"));
+      out.shear_value = vec3("path result shear_value", t[3]);
+    }
     return out;
   }
   throw std::invalid_argument("path result: " + std::string(py::str(py::type::of(result))) +
-                              ": must be a sandcell.PathTargets or a tuple (control[3], value[3])");
+                              (py::isinstance<py::tuple>(result) ? " of " + std::to_string(n) + " items" : "") +
+                              ": must be a sandcell.PathTargets, a tuple (control[3], value[3]) or (control[3], "
+                              "value[3], shear_control[3], shear_value[3])");
 }
 
 PathTargets PythonPath::operator()(const PathInput& in) const {
@@ -350,24 +408,43 @@ PYBIND11_MODULE(_sandcell, m) {
       .def_readonly("length0", &PathInput::length0)
       .def_readonly("strain", &PathInput::strain)
       .def_readonly("strain_rate", &PathInput::strain_rate)
+      .def_readonly("deformation", &PathInput::deformation,
+                    "F = H N H0^-1 since the reference (3x3; tension positive, the engine's convention)")
+      .def_readonly("shear_strain_rate", &PathInput::shear_strain_rate,
+                    "(xy, xz, yz) engineering shear rates -L_ab applied until now, 1/s (compression positive)")
       .def_property_readonly("p", [](const PathInput& i) { return i.stress.trace() / 3.0; })
       .def_property_readonly("eps_v", [](const PathInput& i) { return i.strain.sum(); });
 
   py::class_<PathTargets>(m, "PathTargets",
-                          "A custom path's answer: per axis 'strain' (value 1/s), 'stress' (value Pa) or 'volume'")
-      .def(py::init([](const std::vector<std::string>& control, const py::object& value) {
+                          "A custom path's answer: per axis 'strain' (value 1/s), 'stress' (value Pa) or 'volume'; "
+                          "per shear component xy, xz, yz 'strain' (shear_value: engineering rate -L_ab, 1/s) or "
+                          "'stress' (shear_value: S_ab, Pa), compression positive")
+      .def(py::init([](const std::vector<std::string>& control, const py::object& value,
+                       const std::vector<std::string>& shear_control, const py::object& shear_value) {
              PathTargets t;
              t.control = parse_controls("control", control);
              t.value = vec3("value", value);
+             t.shear_control = parse_shear_controls("shear_control", shear_control);
+             t.shear_value = vec3("shear_value", shear_value);
              return t;
            }),
-           py::arg("control"), py::arg("value") = py::make_tuple(0.0, 0.0, 0.0))
+           py::arg("control"), py::arg("value") = py::make_tuple(0.0, 0.0, 0.0),
+           py::arg("shear_control") = std::vector<std::string>{"strain", "strain", "strain"},
+           py::arg("shear_value") = py::make_tuple(0.0, 0.0, 0.0))
       .def_property(
           "control", [](const PathTargets& t) { return control_names(t.control); },
           [](PathTargets& t, const std::vector<std::string>& c) { t.control = parse_controls("control", c); })
       .def_property(
           "value", [](const PathTargets& t) { return t.value; },
-          [](PathTargets& t, const py::object& v) { t.value = vec3("value", v); });
+          [](PathTargets& t, const py::object& v) { t.value = vec3("value", v); })
+      .def_property(
+          "shear_control", [](const PathTargets& t) { return control_names(t.shear_control); },
+          [](PathTargets& t, const std::vector<std::string>& c) {
+            t.shear_control = parse_shear_controls("shear_control", c);
+          })
+      .def_property(
+          "shear_value", [](const PathTargets& t) { return t.shear_value; },
+          [](PathTargets& t, const py::object& v) { t.shear_value = vec3("shear_value", v); });
 
   // An opaque C++ path (undrained_path); give it to ServoSettings.custom.
   py::class_<PathFunction>(m, "PathFunction", "A stress path implemented in C++")
@@ -416,6 +493,9 @@ PYBIND11_MODULE(_sandcell, m) {
            std::tuple{"max_rate", &ServoSettings::max_rate, "1/s"},
            std::tuple{"max_rate_ratio", &ServoSettings::max_rate_ratio, "(0: max_rate alone)"},
            std::tuple{"integral_strain", &ServoSettings::integral_strain, "(0: integral_time alone)"},
+           std::tuple{"normal_stress", &ServoSettings::normal_stress,
+                      "Pa (S_zz of the simple_shear path, compression positive; > 0 on that path)"},
+           std::tuple{"q", &ServoSettings::q, "Pa (deviator of the rotation path)"},
        }) {
     const std::string key = std::string("servo.") + name;
     servo_settings.def_property(name, [member](const ServoSettings& s) { return s.*member; },
@@ -444,6 +524,34 @@ PYBIND11_MODULE(_sandcell, m) {
                     }))
       .def_property("sigma3", [](const ServoSettings& s) { return s.sigma3; },
                     checked_setter(&ServoSettings::sigma3, [](double v) { finite("servo.sigma3", v, "Pa (compression positive)"); }))
+      // The shear components xy, xz, yz (docs/physics.md section 6.2), named so in the messages.
+      .def_property(
+          "shear_control", [](const ServoSettings& s) { return control_names(s.shear_control); },
+          [](ServoSettings& s, const std::vector<std::string>& c) {
+            s.shear_control = parse_shear_controls("servo.shear_control", c);
+          },
+          "Per shear component xy, xz, yz: 'strain' (at shear_strain_rate) or 'stress' (toward shear_target)")
+      .def_property(
+          "shear_strain_rate", [](const ServoSettings& s) { return s.shear_strain_rate; },
+          [](ServoSettings& s, const py::object& v) {
+            s.shear_strain_rate = finite_shear("servo.shear_strain_rate", v,
+                                               "(1/s, engineering gamma_dot = -L_ab, compression positive)");
+          },
+          "(xy, xz, yz) engineering shear rates gamma_dot = -L_ab, 1/s, of the strain-controlled components")
+      .def_property(
+          "shear_target", [](const ServoSettings& s) { return s.shear_target; },
+          [](ServoSettings& s, const py::object& v) {
+            s.shear_target = finite_shear("servo.shear_target", v, "(Pa, S_ab, compression positive)");
+          },
+          "(xy, xz, yz) shear stress targets S_ab, Pa, of the stress-controlled components")
+      .def_property("rotation_rate", [](const ServoSettings& s) { return s.rotation_rate; },
+                    checked_setter(&ServoSettings::rotation_rate,
+                                   [](double v) { finite("servo.rotation_rate", v, "(rad/s, d alpha/dt)"); }),
+                    "rad/s, d alpha/dt of the rotation path (alpha: sigma1's angle from x toward z)")
+      .def_property("rotation_start", [](const ServoSettings& s) { return s.rotation_start; },
+                    checked_setter(&ServoSettings::rotation_start,
+                                   [](double v) { finite("servo.rotation_start", v, "(rad, alpha at time 0)"); }),
+                    "rad, alpha of the rotation path at clock time 0")
       .def_property(
           "interval", [](const ServoSettings& s) { return s.interval; },
           [](ServoSettings& s, int v) {
@@ -628,7 +736,32 @@ PYBIND11_MODULE(_sandcell, m) {
           })
       .def_property(
           "servo_integral", [](const State& s) { return s.cell.servo_integral; },
-          [](State& s, const py::object& v) { s.cell.servo_integral = finite3("servo_integral", v, "(s)"); });
+          [](State& s, const py::object& v) { s.cell.servo_integral = finite3("servo_integral", v, "(s)"); })
+      // The shearing cell (components/cell.hpp): tilts (xy, xz, yz) of H and of the reference H0,
+      // the flip counts of N, the shear rates (L_xy, L_xz, L_yz) and the shear servo's integral.
+      .def_property(
+          "cell_tilt", [](const State& s) { return s.cell.tilt; },
+          [](State& s, const py::object& v) { s.cell.tilt = finite_shear("cell_tilt", v, "(m, xy, xz, yz of H)"); })
+      .def_property(
+          "cell_tilt0", [](const State& s) { return s.cell.tilt0; },
+          [](State& s, const py::object& v) {
+            s.cell.tilt0 = finite_shear("cell_tilt0", v, "(m, xy, xz, yz of the reference H0)");
+          })
+      .def_property(
+          "cell_flip", [](const State& s) { return s.cell.flip; },
+          [](State& s, const py::object& v) { s.cell.flip = integers3("cell_flip", v); },
+          "Flip counts (n_xy, n_xz, n_yz) of N: F = H N H0^-1 (integers; [0, 0, 0] with tilt0 = tilt resets F to I)")
+      .def_property(
+          "cell_shear_rate", [](const State& s) { return s.cell.shear_rate; },
+          [](State& s, const py::object& v) {
+            s.cell.shear_rate = finite_shear("cell_shear_rate", v, "(1/s, L_xy, L_xz, L_yz, tension positive)");
+          })
+      .def_property(
+          "shear_integral", [](const State& s) { return s.cell.shear_integral; },
+          [](State& s, const py::object& v) { s.cell.shear_integral = finite_shear("shear_integral", v, "(s)"); })
+      .def_property_readonly(
+          "cell_deformation", [](const State& s) { return s.cell.deformation(); },
+          "F = H N H0^-1, the deformation gradient since the reference (3x3, a copy)");
 
   py::class_<StressInvariants>(m, "StressInvariants")
       .def_readonly("principal", &StressInvariants::principal)
@@ -665,7 +798,59 @@ PYBIND11_MODULE(_sandcell, m) {
       .def_readonly("elastic_energy", &Measures::elastic_energy)
       .def_readonly("max_overlap_ratio", &Measures::max_overlap_ratio)
       .def_readonly("inertial_number", &Measures::inertial_number)
-      .def_readonly("inertial_number_axial", &Measures::inertial_number_axial);
+      .def_readonly("inertial_number_axial", &Measures::inertial_number_axial)
+      // Tensor measures (systems/kinematics.hpp): also meaningful for a sheared cell.
+      .def_readonly("deformation", &Measures::deformation, "F = H N H0^-1 since the reference (3x3)")
+      .def_readonly("strain_tensor", &Measures::strain_tensor,
+                    "-ln V, V = sqrt(F F^T): the logarithmic strain tensor, compression positive")
+      .def_readonly("strain_rate_tensor", &Measures::strain_rate_tensor, "-(L + L^T)/2, 1/s, compression positive")
+      .def_readonly("gamma", &Measures::gamma, "Engineering shear strains (xy, xz, yz) = -(F_xy, F_xz, F_yz)")
+      .def_readonly("principal_stress", &Measures::principal_stress, "Principal stresses, Pa, descending")
+      .def_readonly("stress_directions", &Measures::stress_directions, "Columns: their unit directions")
+      .def_readonly("principal_strain", &Measures::principal_strain, "Principal values of strain_tensor, descending")
+      .def_readonly("strain_directions", &Measures::strain_directions, "Columns: their unit directions")
+      .def_readonly("alpha", &Measures::alpha, "Degrees in (-90, 90]: sigma1's direction in xz from x toward z")
+      .def_readonly("noncoaxiality", &Measures::noncoaxiality,
+                    "Degrees in [0, 90]: between the major directions of stress and strain_rate_tensor");
+
+  // The kinematic functions (systems/kinematics.hpp) on any tensors, e.g. two rows of a results file.
+  m.def(
+      "log_strain",
+      [](const Mat3& f) {
+        finite_tensor("F", f);
+        const double det = f.determinant();
+        if (!(det > 0.0))
+          throw std::invalid_argument("F: det F = " + number(det) + ": must be > 0 (a deformation gradient)");
+        return log_strain(f);
+      },
+      py::arg("F"), "-ln sqrt(F F^T): the logarithmic (Hencky) strain of F, compression positive");
+  m.def(
+      "principal",
+      [](const Mat3& sym) {
+        const Principal p = principal(finite_tensor("tensor", sym));
+        return py::make_tuple(p.values, p.directions);
+      },
+      py::arg("tensor"),
+      "(values, directions): principal values descending, unit directions as columns (largest component positive) "
+      "of the symmetric part of a 3x3 tensor");
+  m.def(
+      "strain_rate_tensor", [](const Mat3& l) { return strain_rate_tensor(finite_tensor("L", l)); }, py::arg("L"),
+      "-(L + L^T)/2 of a velocity gradient L (tension positive): the strain rate, compression positive");
+  m.def(
+      "axes_rotation_deg", [](const Mat3& t) { return axes_rotation_deg(finite_tensor("tensor", t)); },
+      py::arg("tensor"), "Degrees between the major principal direction and the nearest of x, y, z");
+  m.def(
+      "alpha_deg", [](const Mat3& t) { return alpha_deg(finite_tensor("tensor", t)); }, py::arg("tensor"),
+      "Degrees in (-90, 90]: the major principal direction of the xz block from x toward z (the rotation path's "
+      "alpha), atan2(2 S_xz, S_xx - S_zz) / 2");
+  m.def(
+      "noncoaxiality_deg",
+      [](const Mat3& stress, const Mat3& increment) {
+        return noncoaxiality_deg(finite_tensor("stress", stress), finite_tensor("strain_increment", increment));
+      },
+      py::arg("stress"), py::arg("strain_increment"),
+      "Degrees in [0, 90] between the major principal directions of a stress and a strain increment (both "
+      "compression positive); 0 when either is isotropic");
 
   bind_world(m);
 

@@ -99,6 +99,13 @@ py::dict cell_views(py::handle owner, const State& s) {
   d["length0"] = vec_view(owner, s.cell.length0);
   d["rate"] = vec_view(owner, s.cell.rate);
   d["servo_integral"] = vec_view(owner, s.cell.servo_integral);
+  // The shearing cell (components/cell.hpp): tilts (xy, xz, yz) of H and H0, flip counts of N
+  // (integers, as doubles), shear rates (L_xy, L_xz, L_yz), the shear servo's integral.
+  d["tilt"] = vec_view(owner, s.cell.tilt);
+  d["tilt0"] = vec_view(owner, s.cell.tilt0);
+  d["flip"] = vec_view(owner, s.cell.flip);
+  d["shear_rate"] = vec_view(owner, s.cell.shear_rate);
+  d["shear_integral"] = vec_view(owner, s.cell.shear_integral);
   return d;
 }
 
@@ -451,7 +458,8 @@ void bind_world(py::module_& m) {
           "Read-only copies of the contact arrays (they move at each neighbour-list build)")
       .def_property_readonly(
           "cell", [](py::object self) { return cell_views(self, self.cast<const PyWorld&>().state("World.cell")); },
-          "Read-only live views of the cell's 3-vectors (length, length0, rate, servo_integral)")
+          "Read-only live views of the cell's 3-vectors (length, length0, rate, servo_integral, tilt, tilt0, flip, "
+          "shear_rate, shear_integral)")
       .def(
           "set_cell_rate",
           [](PyWorld& w, const py::object& v) {
@@ -462,6 +470,16 @@ void bind_world(py::module_& m) {
             w.snapshot_stale = true;  // a change that replaying steps would not make
           },
           py::arg("rate"), "Sets the cell's D_kk (1/s, tension positive) for the next step")
+      .def(
+          "set_cell_shear_rate",
+          [](PyWorld& w, const py::object& v) {
+            w.check("World.set_cell_shear_rate");
+            w.world->state().cell.shear_rate = finite_shear("shear_rate", v, "(1/s, L_ab, tension positive)");
+            w.snapshot_stale = true;  // a change that replaying steps would not make
+          },
+          py::arg("shear_rate"),
+          "Sets the cell's shear rates (L_xy, L_xz, L_yz) (1/s, tension positive: the engineering rate is -L_ab) for "
+          "the next step; a servo on the shear components sets them again at its next update")
       .def(
           "write_checkpoint",
           [](const PyWorld& w, const std::string& path, const py::object& extra) {

@@ -27,11 +27,10 @@ def work_dir():
     return tempfile.mkdtemp(prefix="sandcell-py-", dir=base)
 
 
-@pytest.fixture(scope="session")
-def loose_sample():
-    """250 spheres compressed isotropically to P0 *with* friction (a loose packing, e ~ 0.75),
-    strains counted from there. Returns (model, state)."""
-    model = base_model()
+def prepared_sample(friction):
+    """250 spheres compressed isotropically to P0 with this friction, strains counted from there:
+    a state with the cell at rest and the shear model base_model() (friction 0.5)."""
+    model = base_model(friction)
     s = model.servo
     s.enabled, s.path, s.control, s.p = True, "isotropic", ["stress"] * 3, P0
     s.max_rate, s.gain = 5.0, sc.derived_servo("prepare", P0, model.materials[0], model.dt)[0]
@@ -43,10 +42,22 @@ def loose_sample():
         if max(abs(m.stress[k, k] - P0) / P0 for k in range(3)) < 0.01 and m.unbalanced < 0.01:
             break
     else:
-        raise AssertionError("the loose sample did not converge to p0")
+        raise AssertionError(f"the sample (friction {friction}) did not converge to p0")
     state = world.state()
     state.cell_length0 = state.cell_length
     state.reset_clock()
     state.servo_integral = [0, 0, 0]
     state.cell_rate = [0, 0, 0]
     return base_model(), state
+
+
+@pytest.fixture(scope="session")
+def loose_sample():
+    """Compressed *with* friction: a loose packing, e ~ 0.75. Returns (model, state)."""
+    return prepared_sample(0.5)
+
+
+@pytest.fixture(scope="session")
+def dense_sample():
+    """Compressed without friction: a dense packing, e ~ 0.55. Returns (model, state)."""
+    return prepared_sample(0.0)

@@ -161,3 +161,95 @@ TEST_CASE("median_diameter: 50 % passing by mass") {
   add_sphere(s, model, 7, Vec3(0.9, 0, 0), 1e-3, 0);
   CHECK(median_diameter(s.particles) == 2e-3);
 }
+
+namespace {
+
+// The chain of three spheres along x of the rattler test, its middle one pressed by both ends (a
+// stress S_xx > 0 only: every branch and force lies on x), in a cell given by `shape`.
+template <class Shape>
+World chain_world(Shape shape) {
+  Model model = elastic_model();
+  State s;
+  const double r = 1e-3;
+  s.cell.length = s.cell.length0 = Vec3(20e-3, 10e-3, 10e-3);
+  shape(s.cell);
+  add_sphere(s, model, 0, Vec3(5e-3, 5e-3, 5e-3), r, 0);
+  add_sphere(s, model, 1, Vec3(5e-3 + 1.999e-3, 5e-3, 5e-3), r, 0);
+  add_sphere(s, model, 2, Vec3(5e-3 + 3.998e-3, 5e-3, 5e-3), r, 0);
+  return World(model, std::move(s), systems_for(model), ExecutorConfig{Backend::serial});
+}
+
+}  // namespace
+
+TEST_CASE("measures: an orthorhombic cell keeps the arithmetic of its strains, its tensors diagonal") {
+  World world = chain_world([](Cell& c) {
+    c.length = Vec3(19.9e-3, 10.03e-3, 10.02e-3);
+    c.rate = Vec3(-5.0, 2.0, 1.5);
+  });
+  MeasureOptions o;
+  o.d50 = 2e-3;
+  o.density = 2650.0;
+  const Measures m = measure(world.model(), world.state(), world.executor(), o);
+  const Cell& c = world.state().cell;
+  // The formulas measure() had before the cell could shear, restated: equal bit for bit.
+  Vec3 e;
+  for (int a = 0; a < 3; ++a) {
+    e[a] = -std::log(c.length[a] / c.length0[a]);
+    CHECK(m.strain[a] == e[a]);
+    CHECK(m.strain_engineering[a] == 1.0 - c.length[a] / c.length0[a]);
+    CHECK(m.strain_rate[a] == -c.rate[a]);
+  }
+  CHECK(m.eps_v == e.sum());
+  CHECK(m.eps_q == std::sqrt(2.0) / 3.0 *
+                       std::sqrt((e[0] - e[1]) * (e[0] - e[1]) + (e[1] - e[2]) * (e[1] - e[2]) +
+                                 (e[2] - e[0]) * (e[2] - e[0])));
+  const double gdot = m.strain_rate.maxCoeff() - m.strain_rate.minCoeff();
+  CHECK(m.inertial_number == gdot * o.d50 * std::sqrt(o.density / m.inv.p));
+  // The tensors: diagonal, exactly the axes' values; principal values the strains sorted.
+  CHECK(m.strain_tensor == Mat3(m.strain.asDiagonal()));
+  CHECK(m.strain_rate_tensor == Mat3(m.strain_rate.asDiagonal()));
+  for (int a = 0; a < 3; ++a) CHECK(m.deformation(a, a) == c.length[a] / c.length0[a]);
+  CHECK(m.gamma == Vec3::Zero());
+  CHECK(m.principal_strain == Vec3(e[0], e[2], e[1]));  // 0.005, -0.002, -0.003: x, z, y
+  CHECK(m.principal_stress == Vec3(m.stress(0, 0), 0.0, 0.0));
+  CHECK(m.stress_directions == Mat3::Identity());
+  CHECK(m.alpha == 0.0);
+  CHECK(m.noncoaxiality == 0.0);  // the stress's and the rate's majors both on x
+}
+
+TEST_CASE("measures: a sheared cell's strain is the log strain of F, eps_q its deviatoric invariant, gamma -F_ab") {
+  World world = chain_world([](Cell& c) {
+    c.length[2] = 9.9e-3;            // 1 % shorter along z
+    c.tilt = Vec3(0.0, 2e-3, 0.0);   // xz, after one flip: F_xz = (L1 + xz) / L3_0 = 2.2
+    c.flip = Vec3(0.0, 1.0, 0.0);
+    c.rate = Vec3(0.0, 0.0, -1.0);
+    c.shear_rate = Vec3(0.0, -100.0, 0.0);  // gamma_dot_xz = 100 1/s
+  });
+  MeasureOptions o;
+  o.d50 = 2e-3;
+  o.density = 2650.0;
+  const Measures m = measure(world.model(), world.state(), world.executor(), o);
+  const Cell& c = world.state().cell;
+  CHECK(m.deformation == c.deformation());
+  CHECK(m.deformation(0, 2) == doctest::Approx(2.2).epsilon(1e-15));
+  CHECK(m.gamma == Vec3(0.0, -m.deformation(0, 2), 0.0));
+  CHECK(m.strain_tensor == log_strain(c.deformation()));
+  // eps_v from the lengths equals the trace, -ln det F, up to the eigen-solver's rounding (1e-15
+  // of the largest principal strain, ~1).
+  CHECK(std::abs(m.eps_v - m.strain_tensor.trace()) <= 1e-14);
+  const Vec3 e = principal(m.strain_tensor).values;
+  CHECK(m.principal_strain == e);
+  CHECK(m.eps_q == std::sqrt(2.0) / 3.0 *
+                       std::sqrt((e[0] - e[1]) * (e[0] - e[1]) + (e[1] - e[2]) * (e[1] - e[2]) +
+                                 (e[2] - e[0]) * (e[2] - e[0])));
+  // The strain rate tensor -sym(L) in xz is [[0, 50], [50, 1]] 1/s: principal rates
+  // (1 +- sqrt(1 + 4 50^2)) / 2 and 0, so gamma_dot = eps_dot_1 - eps_dot_3 = sqrt(10001); the
+  // major direction at atan(eps_dot_1 / 50) from x toward z, the stress's major on x.
+  CHECK(m.strain_rate_tensor(0, 2) == 50.0);
+  CHECK(m.strain_rate_tensor(2, 2) == 1.0);
+  CHECK(m.inertial_number ==
+        doctest::Approx(std::sqrt(10001.0) * o.d50 * std::sqrt(o.density / m.inv.p)).epsilon(1e-14));
+  const double rate1 = 0.5 * (1.0 + std::sqrt(10001.0));
+  CHECK(std::abs(m.noncoaxiality - std::atan2(rate1, 50.0) * 180.0 / std::numbers::pi) <= 1e-9);
+  CHECK(m.alpha == 0.0);
+}
