@@ -116,11 +116,11 @@ class ShearRun {
   void row();
   CheckpointExtra extras() const;
   /// The path's travel (what its end, its rows and its watch count): the axial strain, the simple
-  /// shears' gamma = F_xz, the rotation's angle turned (rad).
+  /// shears' gamma = -F_xz (soil convention), the rotation's angle turned (rad).
   double travel(const Cell& cell, const sandcell::Clock& clock) const {
     switch (test_.path) {
       case ShearPath::simple_shear:
-      case ShearPath::simple_shear_cv: return cell.deformation()(0, 2);
+      case ShearPath::simple_shear_cv: return -cell.deformation()(0, 2);
       case ShearPath::rotation: {
         const RotationConfig& r = plan_.config.rotation;
         return std::max(0.0, clock.time - r.ramp_time) * r.rate * std::numbers::pi / 180.0;

@@ -42,10 +42,16 @@ def main(sample, results, out):
     cfg = tomllib.loads(res.attrs["config"] if isinstance(res.attrs["config"], str)
                         else res.attrs["config"].decode())
     s = res["series"]
-    dt = s["time"][1] / s["step"][1]  # the series' first row after the start: step * dt
 
     mat = cfg["material"]
     E, nu, e, mu = mat["young"], mat["poisson"], mat["restitution"], mat["friction"]
+    # dt = time.dt_fraction x the Rayleigh time of the smallest sphere (engine/model.cpp)
+    shear_modulus = E / (2.0 * (1.0 + nu))
+    t_r = math.pi * r.min() * math.sqrt(mat["density"] / shear_modulus) / (0.1631 * nu + 0.8766)
+    dt = cfg["time"]["dt_fraction"] * t_r
+    k = int(np.argmax(s["step"][:] > 0))
+    if abs(s["time"][k] / s["step"][k] / dt - 1.0) > 1e-12:
+        sys.exit("dt %.17g does not match the series (time %.17g at step %d)" % (dt, s["time"][k], s["step"][k]))
     V = cfg["contact"]["characteristic_velocity"]
     assert cfg["contact"]["normal"] == "hooke" and cfg["contact"]["tangential"] == "history"
     assert cfg["contact"]["rolling"] == "none"

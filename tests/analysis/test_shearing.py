@@ -68,12 +68,12 @@ def test_no_strain_increment_is_no_angle():
 
 def test_simple_shear_measures():
     g = np.linspace(0.0, 2.0, 11)
-    F = np.array([[[1, 0, x], [0, 1, 0], [0, 0, 1]] for x in g], float)
-    s6 = np.tile([1e5, 1e5, 1e5, 0.0, -4e4, 0.0], (11, 1))
+    F = np.array([[[1, 0, -x], [0, 1, 0], [0, 0, 1]] for x in g], float)  # gamma = -F_xz (soil convention)
+    s6 = np.tile([1e5, 1e5, 1e5, 0.0, 4e4, 0.0], (11, 1))
     m = shearing.simple_shear_measures({"stress": s6, "F": F, "eps_v": np.zeros(11), "e": np.zeros(11)})
     assert np.array_equal(m["gamma"], g)
     assert m["ratio"] == pytest.approx(np.full(11, 0.4), rel=1e-15)
-    # Simple shear's strain increment: -sym(dF F^-1) = -(dg/2)(e_x e_z^T + e_z e_x^T): principal
-    # directions at +-45 deg in xz, compression along -45 deg (alpha -45 for gamma growing).
+    # Simple shear's strain increment: -sym(dF F^-1) = (dg/2)(e_x e_z^T + e_z e_x^T): principal
+    # directions at +-45 deg in xz, compression along +45 deg (alpha 45 for gamma growing).
     de = shearing.strain_increments(F)
-    assert shearing.major_angle_xz(de[:, 0, 0], de[:, 2, 2], de[:, 0, 2]) == pytest.approx(np.full(10, -45.0))
+    assert shearing.major_angle_xz(de[:, 0, 0], de[:, 2, 2], de[:, 0, 2]) == pytest.approx(np.full(10, 45.0))

@@ -67,16 +67,16 @@ TEST_CASE("triaxial: simple shear to gamma = 2.2 at constant normal stress flips
   CHECK(sa.cell.length == sb.cell.length);
   CHECK(sa.cell.tilt == sb.cell.tilt);
   CHECK(sa.cell.flip == sb.cell.flip);
-  // gamma = F_xz = (H N H0^-1)_xz, continuous across the flips; the lattice's tilt stays within half
-  // a length (the flips: n_xz counts them, one per unit of tilt / L1).
-  const double gamma = sa.cell.deformation()(0, 2);
+  // gamma = -F_xz = -(H N H0^-1)_xz, continuous across the flips; the lattice's tilt stays within
+  // half a length (the flips: n_xz counts them, one per unit of tilt / L1).
+  const double gamma = -sa.cell.deformation()(0, 2);
   MESSAGE("gamma ", gamma, ", flips ", sa.cell.flip.transpose(), ", tilt / L1 ", sa.cell.tilt[1] / sa.cell.length[0]);
   CHECK(gamma >= 2.2);
-  CHECK(sa.cell.flip[1] >= 2.0);  // N's xz: +1 per flip of c by -a (H N continuous)
+  CHECK(sa.cell.flip[1] <= -2.0);  // N's xz: -1 per flip of c by +a (the tilt decreasing; H N continuous)
   CHECK(std::abs(sa.cell.tilt[1]) <= 0.5 * sa.cell.length[0]);
   // The series: S_zz held at p0 (means over the watch's window, 11 rows = 5 % of gamma, within its
   // 2 %), the free xy and yz shears near
-  // zero, the shear stress carried: tau / sigma_n = -S_xz / S_zz between 0.2 and 1 once sheared
+  // zero, the shear stress carried: tau / sigma_n = S_xz / S_zz between 0.2 and 1 once sheared
   // (frictional spheres, mu = 0.5: a Coulomb material's tau/sigma at steady flow is below mu + rolling).
   const fs::path file = a / (test + ".h5");
   const std::vector<double> stress = dataset(file, "/series/stress");
@@ -98,8 +98,8 @@ TEST_CASE("triaxial: simple shear to gamma = 2.2 at constant normal stress flips
     }
     worst_zz = std::max(worst_zz, std::abs(zz - 1e5) / 1e5);
     worst_free = std::max({worst_free, std::abs(xy) / p, std::abs(yz) / p});
-    if (f[9 * k + 2] > 1.0) {
-      ratio_sum += -xz / zz;
+    if (-f[9 * k + 2] > 1.0) {
+      ratio_sum += xz / zz;
       ++late;
     }
   }

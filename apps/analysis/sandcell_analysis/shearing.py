@@ -4,7 +4,8 @@ principal stresses (the non-coaxiality of the principal stress and strain-increm
 against the stress's angle).
 
 Conventions (soil mechanics, compression positive): the series' stress S (xx yy zz xy xz yz); the
-deformation F = H N H0^-1 (row-major), gamma = F_xz; the strain increment between two rows is
+deformation F = H N H0^-1 (row-major), gamma = -F_xz (the engineering shear strain, positive as the
+simple shear paths drive it); the strain increment between two rows is
 d_eps = -sym(F_next F^-1 - I) (the velocity gradient integrated over the interval, compression
 positive). In the xz plane (the rotation's plane, y the intermediate axis) the angle of a symmetric
 tensor's major principal direction from x toward z is alpha = atan2(2 T_xz, T_xx - T_zz) / 2, in
@@ -52,11 +53,11 @@ def strain_increments(F):
 
 
 def simple_shear_measures(d):
-    """gamma = F_xz, tau / sigma_n = -S_xz / S_zz (positive for gamma growing), eps_v and e."""
+    """gamma = -F_xz, tau / sigma_n = S_xz / S_zz (positive for gamma growing), eps_v and e."""
     s = d["stress"]
     with np.errstate(divide="ignore", invalid="ignore"):
-        ratio = -s[:, 4] / s[:, 2]
-    return {"gamma": d["F"][:, 0, 2], "ratio": ratio, "sigma_n": s[:, 2], "eps_v": d["eps_v"], "e": d["e"]}
+        ratio = s[:, 4] / s[:, 2]
+    return {"gamma": -d["F"][:, 0, 2], "ratio": ratio, "sigma_n": s[:, 2], "eps_v": d["eps_v"], "e": d["e"]}
 
 
 def rotation_measures(d, min_increment=1e-9):
@@ -102,7 +103,7 @@ def figures(plt, tests, out, title, files, save):
             fig, ax = plt.subplots(1, 2, figsize=(11, 4.2))
             ax[0].plot(100.0 * m["gamma"], m["ratio"], color="C0")
             ax[0].set_xlabel("shear strain gamma (%)")
-            ax[0].set_ylabel("tau / sigma_n = -S_xz / S_zz")
+            ax[0].set_ylabel("tau / sigma_n = S_xz / S_zz")
             ax[1].plot(100.0 * m["gamma"], 100.0 * m["eps_v"], color="C2")
             ax[1].set_xlabel("shear strain gamma (%)")
             ax[1].set_ylabel("eps_v (%) [compression +]")

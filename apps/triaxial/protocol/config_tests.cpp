@@ -42,7 +42,7 @@ void parse_shear(const toml::table& root, const std::string& source, ShearConfig
   }
   s.integer("steps", h.steps, 0, UINT64_MAX, "must be an integer >= 0");
   s.number("max_shear_strain", h.max_shear_strain, 1e-9, 1e3,
-           "must be in (0, 1000] (engineering shear strain gamma = F_xz of the simple shear paths)");
+           "must be in (0, 1000] (engineering shear strain gamma = -F_xz of the simple shear paths)");
   s.check_unknown();
 }
 

@@ -22,7 +22,7 @@ constexpr TestPath k_paths[] = {
      "[cyclic]: q/p0 (stress mode) or eps1 (strain mode, at shear.strain_rate) between the bounds, undrained or at "
      "sigma3 = p0, until cyclic.cycles or cyclic.max_strain"},
     {ShearPath::simple_shear, "simple_shear", "ss", false, false, true, true,
-     "xz sheared at shear.strain_rate (engineering, gamma_dot = -L_xz), xx and yy fixed, S_zz held at p0, until "
+     "xz sheared at shear.strain_rate (engineering, gamma_dot = -L_xz > 0), xx and yy fixed, S_zz held at p0, until "
      "shear.max_shear_strain"},
     {ShearPath::simple_shear_cv, "simple_shear_cv", "sscv", false, false, true, true,
      "xz sheared at shear.strain_rate, xx, yy and zz fixed (constant volume), until shear.max_shear_strain"},

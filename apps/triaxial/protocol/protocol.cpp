@@ -273,8 +273,9 @@ Model shear_model(const Protocol& plan, const TestSpec& test) {
     // gamma_dot = shear.strain_rate, or I sqrt(p/rho) / d50 at a set inertial number (the path's answer
     // scales the direction (0, 1, 0) by it at each update, systems/stress_paths.cpp).
     const double rate0 = axial_rate(plan, test.p0);
-    // gamma = F_xz grows: L_xz = +rate, the servo's engineering rate -L_xz (soil convention).
-    s.shear_strain_rate = Vec3(0.0, -(h.inertial_number > 0.0 ? 1.0 : h.strain_rate), 0.0);
+    // gamma = -F_xz grows (soil convention, docs/physics.md section 1): the servo's engineering rate
+    // -L_xz = +rate.
+    s.shear_strain_rate = Vec3(0.0, h.inertial_number > 0.0 ? 1.0 : h.strain_rate, 0.0);
     if (h.inertial_number > 0.0) {
       s.inertial_number = h.inertial_number;
       s.d50 = plan.d50;

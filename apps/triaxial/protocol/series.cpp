@@ -18,6 +18,10 @@ void six(const Mat3& t, double* out) {
 void three(const Vec3& v, double* out) {
   for (int k = 0; k < 3; ++k) out[k] = v[k];
 }
+// The columns of a matrix one after another (each principal direction's x, y, z).
+void nine_columns(const Mat3& t, double* out) {
+  for (int k = 0; k < 9; ++k) out[k] = t(k % 3, k / 3);
+}
 
 using S = const State&;
 using M = const Measures&;
@@ -59,6 +63,22 @@ constexpr SeriesColumn k_columns[] = {
        const Mat3 f = s.cell.deformation();
        for (int k = 0; k < 9; ++k) o[k] = f(k / 3, k % 3);
      }},
+    {"strain_tensor", "- (logarithmic -ln sqrt(F F^T), compression positive; xx yy zz xy xz yz)", 6,
+     [](S, M m, double, double* o) { six(m.strain_tensor, o); }},
+    {"strain_rate_tensor", "1/s (-(L + L^T)/2, compression positive; xx yy zz xy xz yz)", 6,
+     [](S, M m, double, double* o) { six(m.strain_rate_tensor, o); }},
+    {"gamma", "- (engineering shear strains -(F_xy, F_xz, F_yz), compression positive)", 3,
+     [](S, M m, double, double* o) { three(m.gamma, o); }},
+    {"principal_strain", "- (of strain_tensor, descending)", 3,
+     [](S, M m, double, double* o) { three(m.principal_strain, o); }},
+    {"stress_directions", "- (unit directions of s1, s2, s3: x y z of each, row-major by principal value)", 9,
+     [](S, M m, double, double* o) { nine_columns(m.stress_directions, o); }},
+    {"strain_directions", "- (unit directions of the principal strains, as stress_directions)", 9,
+     [](S, M m, double, double* o) { nine_columns(m.strain_directions, o); }},
+    {"alpha", "degrees (sigma1's direction in the xz plane from x toward z, in (-90, 90])", 1,
+     [](S, M m, double, double* o) { *o = m.alpha; }},
+    {"noncoaxiality", "degrees (between the major principal directions of stress and strain rate, [0, 90])", 1,
+     [](S, M m, double, double* o) { *o = m.noncoaxiality; }},
     {"cell_tilt", "m (xy xz yz of the lattice basis H, reduced by flips)", 3,
      [](S s, M, double, double* o) { three(s.cell.tilt, o); }},
     {"shear_strain_rate", "1/s (xy xz yz: the engineering rates -L_ab, compression positive)", 3,

@@ -1,0 +1,75 @@
+#!/bin/bash
+# Simple shear at constant volume of a dense packing, sandcell beside LAMMPS (README.md).
+#
+#   experiments/2026-11-28-simple-shear-vs-lammps/run.sh [TRIAXIAL] [SCRATCH]
+#
+# TRIAXIAL: sandcell's triaxial app (default build/release/apps/triaxial/triaxial);
+# SCRATCH: a directory for the runs (default /tmp/lmpcmp/run; about 150 MB, it is emptied first).
+# Needs Debian's lammps (`lmp`, GRANULAR) and /usr/bin/python3 with h5py, numpy, matplotlib.
+# Writes comparison.csv, divergence.csv and comparison.png beside this script and prints the tables
+# of README.md. About 1 h on 2 shared cores (sandcell ~25 min, both LAMMPS runs alongside).
+set -euo pipefail
+here=$(cd "$(dirname "$0")" && pwd)
+root=$(cd "$here/../.." && pwd)
+tri=$(realpath "${1:-$root/build/release/apps/triaxial/triaxial}")
+work=${2:-/tmp/lmpcmp/run}
+py=/usr/bin/python3
+rm -rf "$work"
+mkdir -p "$work"
+cd "$work"
+
+# 1. The sample: 2000 equal spheres compressed isotropically to 100 kPa with friction 0.15.
+"$tri" "$here/prepare.toml" --out prep --threads 1 --prepare-only
+$py - <<'EOF'
+import h5py
+f = h5py.File("prep/sample-p0_100kPa.h5", "r")
+L, x, r = f["cell"].attrs["length"], f["particles/position"][:], f["particles/radius"][:]
+with open("packing.txt", "w") as o:
+    o.write("%.17g %.17g %.17g %d\n" % (L[0], L[1], L[2], len(r)))
+    for p, rr in zip(x, r):
+        o.write("%.17g %.17g %.17g %.17g\n" % (p[0], p[1], p[2], rr))
+EOF
+
+# 2. sandcell: the one-step frictionless "preparation" from packing.txt (zero tangential springs),
+# then the shear in three pieces: to just before the tilt reaches L1/2, 5000 steps with a series row
+# every step (the step of the flip), then on to gamma = 0.6. A resumed run is bitwise the
+# uninterrupted one (apps/triaxial/README.md); only output.series_interval changes.
+cp "$here/shear.toml" .
+sed 's/^series_interval = 1000/series_interval = 1/' shear.toml > shear-fine.toml
+"$tri" shear.toml --out sand --threads 1 --prepare-only
+first=$($py - <<'EOF'
+import h5py, tomllib, math
+c = tomllib.load(open("shear.toml", "rb"))
+f = h5py.File("sand/sample-p0_100kPa.h5", "r")
+L, r = f["cell"].attrs["length"], f["particles/radius"][:].min()
+m = c["material"]
+dt = c["time"]["dt_fraction"] * math.pi * r * math.sqrt(m["density"] / (m["young"] / (2 * (1 + m["poisson"])))) / (0.1631 * m["poisson"] + 0.8766)
+# tilt(n) = gamma_dot L3 dt (n - 1) (step 1 runs unsheared): L1/2 at step n
+print(int(0.5 * L[0] / (c["shear"]["strain_rate"] * L[2] * dt)) + 1 - 200)
+EOF
+)
+rc=0; "$tri" shear.toml --out sand --threads 1 --stop-after "$first" || rc=$?
+[ "$rc" -eq 3 ] || { echo "expected the stop (exit 3), got $rc"; exit 1; }
+rc=0; "$tri" shear-fine.toml --out sand --threads 1 --resume --stop-after 5000 || rc=$?
+[ "$rc" -eq 3 ] || { echo "expected the stop (exit 3), got $rc"; exit 1; }
+# 3. LAMMPS from the same sample: newton on (the comparison), and newton off (the same physics,
+# other round-off: how fast two runs of one code part), while sandcell runs on.
+$py "$here/to_lammps.py" sand/sample-p0_100kPa.h5 sand/sscv-p0_100kPa.h5 .
+"$tri" shear.toml --out sand --threads 1 --resume > sand-last.log 2>&1 &
+sand=$!
+nsteps=$($py - <<'EOF'
+import math, tomllib
+c = tomllib.load(open("shear.toml", "rb"))
+dt = float([l.split()[2] for l in open("vars.txt") if l.split()[1] == "dt"][0])
+# sandcell stops at the first step whose gamma = gamma_dot dt (n - 1) reaches max_shear_strain
+print(int(math.ceil(c["shear"]["max_shear_strain"] / (c["shear"]["strain_rate"] * dt))) + 2)
+EOF
+)
+lmp -in "$here/shear.in" -log lammps.log -screen none $(cat vars.txt) -var nsteps "$nsteps" \
+    -var every 1000 -var dump 2000 -var xzfile 1 -var out lammps -var newton on
+lmp -in "$here/shear.in" -log lammps-off.log -screen none $(cat vars.txt) -var nsteps "$nsteps" \
+    -var every 1000 -var dump 2000 -var out lammps-off -var newton off
+wait "$sand"
+
+# 4. The comparison.
+$py "$here/compare.py" --sandcell sand/sscv-p0_100kPa.h5 --lammps lammps --control lammps-off --out "$here"
