@@ -358,3 +358,79 @@ TEST_CASE(
     check_same_history(model, a, b);
   }
 }
+
+namespace {
+
+// The dense packing in a tilted cell. Tilts of whole lattice spacings (2 mm) put the periodic
+// images of lattice sites on lattice sites, so the packing is as dense across the tilted faces as
+// inside. tilt0 = tilt: the reference (F = I).
+State dense_tilted(const Model& model, const Vec3& spacings) {
+  State s = dense(model);
+  s.cell.tilt = s.cell.tilt0 = spacings * 2e-3;
+  return s;
+}
+
+// The axial vector of a tensor's antisymmetric part, (S_yz - S_zy, S_zx - S_xz, S_xy - S_yx):
+// for S = f r^T it is f x r.
+Vec3 axial(const Mat3& s) { return Vec3(s(1, 2) - s(2, 1), s(2, 0) - s(0, 2), s(0, 1) - s(1, 0)); }
+
+}  // namespace
+
+// The contact torques of a pair, t_i = -c_i n x f_t - M and t_j = -c_j n x f_t + M, add up to
+// -(c_i + c_j) n x f_t = f x r, since the lever arms c_i + c_j = R_i + R_j - delta = |r| and the
+// normal force is parallel to r (the rolling moment cancels). Summed over contacts: the axial
+// vector of the antisymmetric part of sum_c f_c (x) r_c is the particles' total torque, sum_k T_k.
+// It vanishes only when the particles' moments balance; in a packing sheared at a finite rate they
+// do not, so the identity is asserted, not the symmetry. Across a tilted face the branch vector
+// must subtract the whole H n (its tilt part included) for the identity to hold.
+TEST_CASE(
+    "Love-Weber sum of a packing sheared by a general L through a flip: its antisymmetric part is the particles' total "
+    "contact torque, to round-off") {
+  const Model model = quartz();
+  State s = dense_tilted(model, Vec3(1.0, 3.0, -2.0));  // xz at half a length: flips at once
+  s.cell.rate = Vec3(-300.0, 150.0, 100.0);
+  s.cell.shear_rate = Vec3(-800.0, 2000.0, 600.0);
+  World world(model, s, systems_for(model), ExecutorConfig{Backend::tbb, 2});
+  world.step(3000);
+  const State& st = world.state();
+  const Particles& p = st.particles;
+  const ContactPairs& pairs = st.contacts.pairs;
+  const ContactForces& cf = st.contacts.forces;
+  REQUIRE(st.cell.flip != Vec3::Zero());
+
+  const Mat3 sum = contact_stress_sum(pairs, cf.force, p.position, st.cell, world.executor());
+  Vec3 torque = Vec3::Zero();
+  for (const Vec3& t : p.torque) torque += t;
+  // Round-off: S sums m products f r^T (each entry off by u |f||r|, the sum by m u sum |f||r|),
+  // the axial vector subtracts two; the particle torques sum the m pairs' t_i, t_j in n + m
+  // additions; per contact, t_i + t_j and f x r differ by the rounding of n, the arms and the
+  // cross products, under 16 u (|f||r| + |t_i| + |t_j|).
+  double size = 0.0;  // sum_c |f||r| + |t_i| + |t_j|, N m
+  std::size_t touching = 0, across_tilted_faces = 0;
+  for (std::size_t c = 0; c < pairs.size(); ++c) {
+    const Vec3 r = p.position[pairs.i[c]] - p.position[pairs.j[c]] - image_offset(pairs.image[c], st.cell);
+    size += cf.force[c].norm() * r.norm() + cf.torque_i[c].norm() + cf.torque_j[c].norm();
+    if (cf.force[c].isZero(0.0)) continue;
+    ++touching;
+    across_tilted_faces += pairs.image[c][1] != 0 || pairs.image[c][2] != 0;
+  }
+  const double bound = 2.0 * k_u * static_cast<double>(pairs.size() + p.size() + 16) * size;
+  const Vec3 defect = axial(sum) - torque;
+  MESSAGE(touching << " touching contacts, " << across_tilted_faces << " across the tilted faces; flips "
+                   << st.cell.flip.transpose() << "\nsum f x r " << axial(sum).transpose() << " N m, sum T "
+                   << torque.transpose() << " N m\n|difference| " << defect.norm() << " N m (bound " << bound
+                   << "); symmetric part of S " << (0.5 * (sum + sum.transpose())).norm() << " N m");
+  REQUIRE(across_tilted_faces > 50);
+  CHECK(defect.cwiseAbs().maxCoeff() <= bound);
+  // Not 0 = 0: the particles are not in moment balance, by far more than the bound.
+  CHECK(axial(sum).norm() > 1e3 * bound);
+  // And the tilts matter: with the branch vectors of the orthorhombic cell (H n without the tilts)
+  // the contacts across the tilted faces break the identity.
+  Mat3 untilted = Mat3::Zero();
+  for (std::size_t c = 0; c < pairs.size(); ++c)
+    untilted +=
+        cf.force[c] *
+        (p.position[pairs.i[c]] - p.position[pairs.j[c]] - image_offset(pairs.image[c], st.cell.length)).transpose();
+  MESSAGE("without the tilts: |difference| " << (axial(untilted) - torque).norm() << " N m");
+  CHECK((axial(untilted) - torque).norm() > 1e3 * bound);
+}
