@@ -18,6 +18,9 @@
 #include <cmath>
 #include <limits>
 #include <map>
+#include <random>
+#include <set>
+#include <tuple>
 #include <vector>
 
 #include <unistd.h>
@@ -650,4 +653,92 @@ TEST_CASE(
   // The continued run flipped too: yz, c - b, took xz past -L1/2, and xz flipped back.
   CHECK(resumed.state().cell.flip != back.cell.flip);
   check_same_state(resumed.state(), reference);
+}
+
+namespace {
+
+using PairKey = std::tuple<ParticleId, ParticleId, Image>;  // (id_i, id_j, image), id_i < id_j
+
+// Every (id_i < id_j, image n in {-2..2}^3) with |x_i - x_j - H n| < R_i + R_j + skin, by brute
+// force; within 1e-12 (relative) of the cutoff into `ties` (the engine may round either way).
+void all_images(const State& s, double skin, std::set<PairKey>& pairs, std::set<PairKey>& ties) {
+  const Particles& p = s.particles;
+  for (std::size_t a = 0; a < p.size(); ++a)
+    for (std::size_t b = 0; b < p.size(); ++b) {
+      if (p.id[a] >= p.id[b]) continue;
+      const double cut = p.radius[a] + p.radius[b] + skin;
+      for (int nz = -2; nz <= 2; ++nz)
+        for (int ny = -2; ny <= 2; ++ny)
+          for (int nx = -2; nx <= 2; ++nx) {
+            const Image n{std::int8_t(nx), std::int8_t(ny), std::int8_t(nz)};
+            const double d = (p.position[a] - p.position[b] - image_offset(n, s.cell)).norm();
+            const PairKey key{p.id[a], p.id[b], n};
+            if (std::abs(d - cut) <= 1e-12 * cut)
+              ties.insert(key);
+            else if (d < cut)
+              pairs.insert(key);
+          }
+    }
+}
+
+}  // namespace
+
+// The broadphase bins reduced coordinates, with as many bins per axis as the width between faces
+// holds cutoffs: in a cell whose tilts reach half a length, the widths are well below the lengths,
+// and a bin count taken from the lengths (or an image search along the axes) would miss pairs.
+TEST_CASE("in tilted cells down to 1.05 cutoffs between faces, the pair list equals an all-images O(N^2) search") {
+  const double r_min = 0.5e-3, r_max = 1e-3, skin = 0.3e-3;
+  const double cut = 2.0 * r_max + skin;
+  const Model model = test::quartz_model(1e-7, skin);
+  struct Shape {
+    Vec3 length;   // relative
+    Vec3 tilt;     // xy, xz as fractions of L1, yz of L2
+    double width;  // the smallest width between faces, in cutoffs
+  };
+  const Shape shapes[] = {{{1, 1, 1}, {0.5, 0.5, 0.5}, 1.05},      {{1, 2.5, 4}, {-0.5, 0.3, -0.45}, 1.05},
+                          {{3, 1, 2}, {0.49, -0.49, 0.2}, 1.05},   {{1, 1, 1}, {-0.3, 0.45, 0.5}, 2.1},
+                          {{1, 1.2, 0.9}, {0.5, -0.5, -0.5}, 3.3}, {{1, 1, 1}, {0.25, -0.1, 0.4}, 6.0}};
+  std::uint64_t seed = 40;
+  std::size_t compared = 0, multi_axis = 0;
+  for (const Shape& shape : shapes) {
+    Cell cell;
+    cell.length = shape.length;
+    cell.tilt = Vec3(shape.tilt[0] * shape.length[0], shape.tilt[1] * shape.length[0], shape.tilt[2] * shape.length[1]);
+    const double scale = shape.width * cut / cell.min_width();
+    cell.length *= scale;
+    cell.tilt *= scale;
+    cell.length0 = cell.length;
+    cell.tilt0 = cell.tilt;
+    const double mean_volume = 4.0 / 3.0 * 3.14159 * std::pow(0.75e-3, 3);
+    const auto n = std::max<std::size_t>(3, static_cast<std::size_t>(0.4 * cell.volume() / mean_volume));
+    for (int rep = 0; rep < 3; ++rep) {
+      State s;
+      s.cell = cell;
+      std::mt19937_64 rng(++seed);
+      std::uniform_real_distribution<double> u01(0.0, 1.0);
+      for (std::size_t k = 0; k < n; ++k)
+        add_sphere(s, model, static_cast<ParticleId>(k), cell.h() * Vec3(u01(rng), u01(rng), u01(rng)),
+                   r_min + (r_max - r_min) * u01(rng), 0);
+      INFO("cell H =\n"
+           << cell.h() << "\nwidths " << cell.widths().transpose() << " m, " << n << " spheres, seed " << seed);
+      World world(model, s, {make_system<Broadphase>()}, ExecutorConfig{Backend::tbb, 2});
+      std::set<PairKey> engine, brute, ties;
+      const ContactPairs& c = world.state().contacts.pairs;
+      for (std::size_t k = 0; k < c.size(); ++k) engine.insert({c.id_i[k], c.id_j[k], c.image[k]});
+      CHECK(engine.size() == c.size());  // no duplicates
+      all_images(world.state(), skin, brute, ties);
+      for (const PairKey& k : ties) engine.erase(k);
+      for (const PairKey& k : brute) {
+        const Image& img = std::get<2>(k);
+        INFO("pair " << std::get<0>(k) << "-" << std::get<1>(k) << " image " << int(img[0]) << " " << int(img[1]) << " "
+                     << int(img[2]));
+        CHECK(engine.count(k) == 1);
+        multi_axis += nonzero_components(img) >= 2;
+      }
+      CHECK(engine.size() == brute.size());
+      compared += brute.size();
+    }
+  }
+  MESSAGE(compared << " pairs compared, " << multi_axis << " of them through images along two or three axes");
+  CHECK(multi_axis > 0);
 }
