@@ -320,7 +320,10 @@ struct ContactKernel {
     c.v_rel = d.v[i] - of_j<G>(d.v, d.gv, jh);
     if constexpr (Affine) {
       c.v_rel += d.rate.cwiseProduct(r);
-      if (d.sheared) c.v_rel += Vec3(d.shear[0] * r[1] + d.shear[1] * r[2], d.shear[2] * r[2], 0.0);
+      if (d.sheared) {  // the off-diagonal part of L r, as the lanes add it (no term on z)
+        c.v_rel[0] += d.shear[0] * r[1] + d.shear[1] * r[2];
+        c.v_rel[1] += d.shear[2] * r[2];
+      }
     }
     c.w_i = d.w[i];
     c.w_j = of_j<G>(d.w, d.gw, jh);
