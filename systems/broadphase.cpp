@@ -143,7 +143,9 @@ Bins bin_particles(const std::vector<Vec3>& x, const Cell& cell, double cutoff, 
 }
 
 // The candidates of particle i: every (j, image) within r_i + r_j + skin, counted once, from the
-// particle with the smaller id.
+// particle with the smaller id. Tilted: the image shift H n of a tilted cell (compiled apart, so an
+// orthorhombic cell's loop stays as it was).
+template <bool Tilted>
 struct Candidates {
   const Bins& bins;
   const BroadphaseScratch& bp;
@@ -161,7 +163,7 @@ struct Candidates {
     const ParticleId idi = id[i];
     for_each_neighbor(bins, b, bp.bin_start, bp.bin_particle, [&](std::uint32_t j, const Image& img) {
       if (id[j] <= idi) return;
-      const Vec3 r = xi - (x[j] + (bins.tilted ? image_offset(img, cell) : image_offset(img, cell.length)));
+      const Vec3 r = xi - (x[j] + (Tilted ? image_offset(img, cell) : image_offset(img, cell.length)));
       const double cut = ri + radius[j];
       if (r.squaredNorm() < cut * cut) emit(j, img);
     });
@@ -170,7 +172,8 @@ struct Candidates {
 
 // Pass 1: candidates per particle into bp.count, their prefix sum into bp.start (each particle's
 // slot range). Returns the number of pairs.
-std::size_t count_pairs(const Candidates& visit, std::size_t n, BroadphaseScratch& bp, Executor& exec) {
+template <class Visit>
+std::size_t count_pairs(const Visit& visit, std::size_t n, BroadphaseScratch& bp, Executor& exec) {
   bp.count.assign(n, 0);
   exec.parallel_for(n, 256, [&](std::size_t b, std::size_t e) {
     for (std::size_t i = b; i < e; ++i) {
@@ -248,7 +251,8 @@ Flip reduce_basis(Cell& cell) {
 
 // Pass 2: fills each particle's slots of the new list (bp.next_pairs, bp.next_history), sorts them
 // canonically by (id_j, image) and carries each pair's histories from the old list by key.
-void fill_pairs(const Candidates& visit, std::size_t m, const ContactPairs& pairs, const Histories& hist,
+template <class Visit>
+void fill_pairs(const Visit& visit, std::size_t m, const ContactPairs& pairs, const Histories& hist,
                 const Flip& flip, BroadphaseScratch& bp, Executor& exec) {
   const auto& history = hist.vec;
   const std::size_t n_history = hist.n_vec, n_scalar = hist.n_scalar;
@@ -350,10 +354,15 @@ void build_neighbor_list(const Model& model, State& state, Scratch& scratch, Exe
   wrap_positions(position.data(), cell, 0, n, bp.shift.data());
 
   const Bins bins = bin_particles(x, cell, cutoff, bp);
-  const Candidates visit{bins, bp, x, radius, id, cell, skin};
-  const std::size_t m = count_pairs(visit, n, bp, exec);
-  group_old_pairs(pairs, n, bp);
-  fill_pairs(visit, m, pairs, hist, flip, bp, exec);
+  const auto list = [&](const auto& visit) {
+    const std::size_t m = count_pairs(visit, n, bp, exec);
+    group_old_pairs(pairs, n, bp);
+    fill_pairs(visit, m, pairs, hist, flip, bp, exec);
+  };
+  if (bins.tilted)
+    list(Candidates<true>{bins, bp, x, radius, id, cell, skin});
+  else
+    list(Candidates<false>{bins, bp, x, radius, id, cell, skin});
 
   ContactPairs& next = bp.next_pairs;
   std::swap(pairs.id_i, next.id_i);
@@ -426,6 +435,62 @@ void rebuild_pair_constants(const ContactPairs& pairs, const std::vector<double>
   }
 }
 
+namespace {
+
+// The rebuild test of Broadphase::run with the non-affine displacement of particle k since the build
+// (`displacement`, an orthorhombic or a tilted cell's form: each compiled apart, so the orthorhombic
+// loop stays as it was). Returns whether to rebuild; sets Scratch::error on a run gone unstable.
+template <class Displacement>
+bool rebuild_due(const Model& model, State& state, Scratch& scratch, Executor& exec, const BroadphaseScratch& bp,
+                 std::size_t n, double stretch, Displacement&& displacement) {
+  // Chunks of the particle passes' size: with 4096, dense-20k's 20,000 particles made 5 chunks,
+  // 3 + 2 on 2 threads. A maximum does not depend on how the chunks group it.
+  const double d2 = exec.deterministic_reduce(
+      n, k_particle_grain, 0.0,
+      [&](std::size_t b, std::size_t e) {
+        double worst = 0.0;
+        for (std::size_t k = b; k < e; ++k) {
+          const double d = displacement(k).squaredNorm();
+          // A non-finite displacement (a run gone unstable) forces a build, which names it.
+          if (!(d <= worst)) worst = d == d ? d : std::numeric_limits<double>::infinity();
+        }
+        return worst;
+      },
+      [](double a, double b) { return std::max(a, b); });
+  const bool rebuild = !(2.0 * std::sqrt(d2) + stretch * bp.cutoff <= model.contact.skin);
+  // The last step passed the test, so every particle had moved at most skin/2 since the build:
+  // beyond skin/2 + r_min now, one moved farther than the smallest radius in this one step and
+  // may have passed through a contact unseen. That, or a non-finite position, is a run gone
+  // unstable: stop with the particle.
+  const double limit = 0.5 * model.contact.skin + bp.r_min;
+  if (!(d2 <= limit * limit)) {
+    const auto& x = state.read<Component::particle_position>();
+    std::size_t worst = 0;
+    double worst_d = -1.0;
+    for (std::size_t k = 0; k < n; ++k) {
+      const Vec3 d = displacement(k);
+      if (!d.allFinite()) {
+        worst = k;
+        worst_d = std::numeric_limits<double>::infinity();
+        break;
+      }
+      if (d.norm() > worst_d) worst_d = d.norm(), worst = k;
+    }
+    const auto& id = state.read<Component::particle_id>();
+    if (!std::isfinite(worst_d))
+      scratch.error = not_finite_message(id[worst], x[worst]);
+    else
+      scratch.error = "particle id " + std::to_string(id[worst]) + ": moved " + std::to_string(worst_d) +
+                      " m since the neighbour list build, more than skin/2 + r_min = " + std::to_string(limit) +
+                      " m: in one step it went farther than the smallest radius (speed " +
+                      std::to_string((worst_d - 0.5 * model.contact.skin) / model.dt) +
+                      " m/s or more): " + k_unstable_advice;
+  }
+  return rebuild;
+}
+
+}  // namespace
+
 void Broadphase::run(const Model& model, State& state, Scratch& scratch, Executor& exec) {
   const auto& x = state.read<Component::particle_position>();
   const auto& reference = state.read<Component::particle_reference>();
@@ -441,66 +506,28 @@ void Broadphase::run(const Model& model, State& state, Scratch& scratch, Executo
       bp.r_min = *std::min_element(radius.begin(), radius.end());
     }
     const Vec3 length = cell.length;
-    const Vec3 inv_length = length.cwiseInverse();
     const Vec3 inv_ref = pairs.reference_length.cwiseInverse();
-    // A tilted cell (now or at the build): reduced coordinates of its upper triangular basis.
-    const bool tilted = !cell.tilt.isZero(0.0) || !pairs.reference_tilt.isZero(0.0);
-    const Vec3 tilt = cell.tilt, ref_tilt = pairs.reference_tilt, ref_length = pairs.reference_length;
     // Non-affine displacement since the build: the change of reduced coordinates scaled by the
-    // current lengths (positions are continuous between builds: no wrap to undo).
-    const auto displacement = [&](std::size_t k) {
-      if (tilted)
+    // current cell (positions are continuous between builds: no wrap to undo). A tilted cell (now
+    // or at the build) takes the reduced coordinates of its upper triangular basis.
+    const bool tilted = !cell.tilt.isZero(0.0) || !pairs.reference_tilt.isZero(0.0);
+    if (tilted) {
+      const Vec3 tilt = cell.tilt, ref_tilt = pairs.reference_tilt, ref_length = pairs.reference_length;
+      // The affine change of a branch vector r since the build, |(H H_ref^-1 - I) r|: at most the
+      // Frobenius norm times |r|.
+      const double stretch = (cell.h() * Cell::upper(ref_length, ref_tilt).inverse() - Mat3::Identity()).norm();
+      rebuild = rebuild_due(model, state, scratch, exec, bp, x.size(), stretch, [&](std::size_t k) {
         return Vec3(unreduced(reduced(x[k], length, tilt) - reduced(reference[k], ref_length, ref_tilt), length, tilt));
-      return Vec3((x[k].cwiseProduct(inv_length) - reference[k].cwiseProduct(inv_ref)).cwiseProduct(length));
-    };
-    // Chunks of the particle passes' size: with 4096, dense-20k's 20,000 particles made 5 chunks,
-    // 3 + 2 on 2 threads. A maximum does not depend on how the chunks group it.
-    const double d2 = exec.deterministic_reduce(
-        x.size(), k_particle_grain, 0.0,
-        [&](std::size_t b, std::size_t e) {
-          double worst = 0.0;
-          for (std::size_t k = b; k < e; ++k) {
-            const double d = displacement(k).squaredNorm();
-            // A non-finite displacement (a run gone unstable) forces a build, which names it.
-            if (!(d <= worst)) worst = d == d ? d : std::numeric_limits<double>::infinity();
-          }
-          return worst;
-        },
-        [](double a, double b) { return std::max(a, b); });
-    // The affine change of a branch vector r since the build, |(H H_ref^-1 - I) r|, at most the
-    // largest |L/L_ref - 1| times |r| for an orthorhombic cell, the Frobenius norm for a tilted one.
-    const double stretch =
-        tilted ? (cell.h() * Cell::upper(ref_length, ref_tilt).inverse() - Mat3::Identity()).norm()
-               : (length.cwiseProduct(inv_ref) - Vec3::Ones()).cwiseAbs().maxCoeff();
-    rebuild = !(2.0 * std::sqrt(d2) + stretch * bp.cutoff <= model.contact.skin);
-    // The last step passed the test, so every particle had moved at most skin/2 since the build:
-    // beyond skin/2 + r_min now, one moved farther than the smallest radius in this one step and
-    // may have passed through a contact unseen. That, or a non-finite position, is a run gone
-    // unstable: stop with the particle.
-    const double limit = 0.5 * model.contact.skin + bp.r_min;
-    if (!(d2 <= limit * limit)) {
-      std::size_t worst = 0;
-      double worst_d = -1.0;
-      for (std::size_t k = 0; k < x.size(); ++k) {
-        const Vec3 d = displacement(k);
-        if (!d.allFinite()) {
-          worst = k;
-          worst_d = std::numeric_limits<double>::infinity();
-          break;
-        }
-        if (d.norm() > worst_d) worst_d = d.norm(), worst = k;
-      }
-      const auto& id = state.read<Component::particle_id>();
-      if (!std::isfinite(worst_d))
-        scratch.error = not_finite_message(id[worst], x[worst]);
-      else
-        scratch.error = "particle id " + std::to_string(id[worst]) + ": moved " + std::to_string(worst_d) +
-                        " m since the neighbour list build, more than skin/2 + r_min = " + std::to_string(limit) +
-                        " m: in one step it went farther than the smallest radius (speed " +
-                        std::to_string((worst_d - 0.5 * model.contact.skin) / model.dt) +
-                        " m/s or more): " + k_unstable_advice;
-      return;
+      });
+    } else {
+      const Vec3 inv_length = length.cwiseInverse();
+      // The affine stretch of a branch vector: at most the largest |L/L_ref - 1| times |r|.
+      const double stretch = (length.cwiseProduct(inv_ref) - Vec3::Ones()).cwiseAbs().maxCoeff();
+      rebuild = rebuild_due(model, state, scratch, exec, bp, x.size(), stretch, [&](std::size_t k) {
+        return Vec3((x[k].cwiseProduct(inv_length) - reference[k].cwiseProduct(inv_ref)).cwiseProduct(length));
+      });
     }
+    if (!scratch.error.empty()) return;
   }
   if (rebuild) build_neighbor_list(model, state, scratch, exec);
 }

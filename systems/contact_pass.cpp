@@ -111,11 +111,14 @@ struct PassData {
   std::array<Vec3, 27> shift;  // H n of the 27 images, by image code (PairConstants)
   Vec3 rate;                   // 1/s, the cell's strain rate (affine velocity D r)
   Vec3 shear;                  // 1/s, (L_xy, L_xz, L_yz): a shearing cell's affine velocity adds them
-  bool sheared;                // shear is nonzero
   double dt;                   // s
   double v_char;               // m/s, for the laws that have one
   double* __restrict hist_a = nullptr;  // m, the contact radius at the last step (laws with radius_history)
 };
+
+// The affine term of the relative velocity, a template argument so that each cell pays only its own:
+// none (contact.liggghts_compat), D r (an orthorhombic cell), L r (a shearing cell).
+constexpr int k_affine_none = 0, k_affine_diagonal = 1, k_affine_full = 2;
 
 // Last step's regimes (ContactScratch) describe the slots of the list they were made for: a new
 // list starts from none (its slots hold other pairs, and no slot's outputs are known to be zero).
@@ -183,7 +186,6 @@ PassData bind_pass(const Model& model, State& state, Scratch& scratch) {
              {},
              cell.rate,
              cell.shear_rate,
-             !cell.shear_rate.isZero(0.0),
              model.dt,
              characteristic_velocity(model.contact)};
   d.gx = d.x;
@@ -203,7 +205,7 @@ PassData bind_pass(const Model& model, State& state, Scratch& scratch) {
 }
 
 // The pass over one chunk of pairs, block by block, with the laws composed at compile time.
-template <class Normal, class Tangential, RollingModel Roll, bool Affine, bool Update, bool Ghosts>
+template <class Normal, class Tangential, RollingModel Roll, int Affine, bool Update, bool Ghosts>
 struct ContactKernel {
   static constexpr bool rolling_history = Roll == RollingModel::epsd2 || Roll == RollingModel::epsd;
   static constexpr bool update = Update;
@@ -318,12 +320,10 @@ struct ContactKernel {
     c.c_i = d.r_i[k] - 0.5 * c.overlap;
     c.c_j = d.r_j[k] - 0.5 * c.overlap;
     c.v_rel = d.v[i] - of_j<G>(d.v, d.gv, jh);
-    if constexpr (Affine) {
-      c.v_rel += d.rate.cwiseProduct(r);
-      if (d.sheared) {  // the off-diagonal part of L r, as the lanes add it (no term on z)
-        c.v_rel[0] += d.shear[0] * r[1] + d.shear[1] * r[2];
-        c.v_rel[1] += d.shear[2] * r[2];
-      }
+    if constexpr (Affine != k_affine_none) c.v_rel += d.rate.cwiseProduct(r);
+    if constexpr (Affine == k_affine_full) {  // the off-diagonal part of L r, as the lanes add it
+      c.v_rel[0] += d.shear[0] * r[1] + d.shear[1] * r[2];
+      c.v_rel[1] += d.shear[2] * r[2];
     }
     c.w_i = d.w[i];
     c.w_j = of_j<G>(d.w, d.gw, jh);
@@ -482,14 +482,14 @@ struct ContactKernel {
     V vx = comp(vi, 0) - comp(vj, 0);
     V vy = comp(vi, 1) - comp(vj, 1);
     V vz = comp(vi, 2) - comp(vj, 2);
-    if constexpr (Affine) {
+    if constexpr (Affine != k_affine_none) {
       vx += d.rate[0] * rx;
       vy += d.rate[1] * ry;
       vz += d.rate[2] * rz;
-      if (d.sheared) {  // the off-diagonal part of L r (a shearing cell)
-        vx += d.shear[0] * ry + d.shear[1] * rz;
-        vy += d.shear[2] * rz;
-      }
+    }
+    if constexpr (Affine == k_affine_full) {  // the off-diagonal part of L r (a shearing cell)
+      vx += d.shear[0] * ry + d.shear[1] * rz;
+      vy += d.shear[2] * rz;
     }
     const V wix = comp(wi, 0), wiy = comp(wi, 1), wiz = comp(wi, 2);
     const V wjx = comp(wj, 0), wjy = comp(wj, 1), wjz = comp(wj, 2);
@@ -680,7 +680,7 @@ void run_kernel(const Kernel& kernel, const Executor::Shares& shares, Halo* h, E
   }
 }
 
-template <class Normal, class Tangential, RollingModel Roll, bool Affine, bool Update>
+template <class Normal, class Tangential, RollingModel Roll, int Affine, bool Update>
 void contact_loop(const Model& model, State& state, Scratch& scratch, Executor& exec) {
   constexpr bool rolling_history = Roll == RollingModel::epsd2 || Roll == RollingModel::epsd;
   PassData d = bind_pass<rolling_history>(model, state, scratch);
@@ -760,9 +760,11 @@ void run_pass(const Model& model, State& state, Scratch& scratch, Executor& exec
     using T = typename decltype(tangential)::type;
     constexpr RollingModel R = decltype(roll)::value;
     if (model.contact.liggghts_compat)
-      contact_loop<N, T, R, false, Update>(model, state, scratch, exec);
+      contact_loop<N, T, R, k_affine_none, Update>(model, state, scratch, exec);
+    else if (state.cell.shear_rate.isZero(0.0))
+      contact_loop<N, T, R, k_affine_diagonal, Update>(model, state, scratch, exec);
     else
-      contact_loop<N, T, R, true, Update>(model, state, scratch, exec);
+      contact_loop<N, T, R, k_affine_full, Update>(model, state, scratch, exec);
   });
 }
 

@@ -4,10 +4,10 @@
 #   experiments/2026-11-28-simple-shear-vs-lammps/run.sh [TRIAXIAL] [SCRATCH]
 #
 # TRIAXIAL: sandcell's triaxial app (default build/release/apps/triaxial/triaxial);
-# SCRATCH: a directory for the runs (default /tmp/lmpcmp/run; about 150 MB, it is emptied first).
+# SCRATCH: a directory for the runs (default /tmp/lmpcmp/run; about 200 MB, emptied first).
 # Needs Debian's lammps (`lmp`, GRANULAR) and /usr/bin/python3 with h5py, numpy, matplotlib.
 # Writes comparison.csv, divergence.csv and comparison.png beside this script and prints the tables
-# of README.md. About 1 h on 2 shared cores (sandcell ~25 min, both LAMMPS runs alongside).
+# of README.md. About 15-25 min on 2 cores (sandcell and LAMMPS side by side).
 set -euo pipefail
 here=$(cd "$(dirname "$0")" && pwd)
 root=$(cd "$here/../.." && pwd)
@@ -30,33 +30,15 @@ with open("packing.txt", "w") as o:
         o.write("%.17g %.17g %.17g %.17g\n" % (p[0], p[1], p[2], rr))
 EOF
 
-# 2. sandcell: the one-step frictionless "preparation" from packing.txt (zero tangential springs),
-# then the shear in three pieces: to just before the tilt reaches L1/2, 5000 steps with a series row
-# every step (the step of the flip), then on to gamma = 0.6. A resumed run is bitwise the
-# uninterrupted one (apps/triaxial/README.md); only output.series_interval changes.
+# 2. sandcell's one-step frictionless "preparation" from packing.txt: the sample both codes start
+# from (the frictional packing's positions, the tangential springs at zero).
 cp "$here/shear.toml" .
 sed 's/^series_interval = 1000/series_interval = 1/' shear.toml > shear-fine.toml
 "$tri" shear.toml --out sand --threads 1 --prepare-only
-first=$($py - <<'EOF'
-import h5py, tomllib, math
-c = tomllib.load(open("shear.toml", "rb"))
-f = h5py.File("sand/sample-p0_100kPa.h5", "r")
-L, r = f["cell"].attrs["length"], f["particles/radius"][:].min()
-m = c["material"]
-dt = c["time"]["dt_fraction"] * math.pi * r * math.sqrt(m["density"] / (m["young"] / (2 * (1 + m["poisson"])))) / (0.1631 * m["poisson"] + 0.8766)
-# tilt(n) = gamma_dot L3 dt (n - 1) (step 1 runs unsheared): L1/2 at step n
-print(int(0.5 * L[0] / (c["shear"]["strain_rate"] * L[2] * dt)) + 1 - 200)
-EOF
-)
-rc=0; "$tri" shear.toml --out sand --threads 1 --stop-after "$first" || rc=$?
-[ "$rc" -eq 3 ] || { echo "expected the stop (exit 3), got $rc"; exit 1; }
-rc=0; "$tri" shear-fine.toml --out sand --threads 1 --resume --stop-after 5000 || rc=$?
-[ "$rc" -eq 3 ] || { echo "expected the stop (exit 3), got $rc"; exit 1; }
-# 3. LAMMPS from the same sample: newton on (the comparison), and newton off (the same physics,
-# other round-off: how fast two runs of one code part), while sandcell runs on.
-$py "$here/to_lammps.py" sand/sample-p0_100kPa.h5 sand/sscv-p0_100kPa.h5 .
-"$tri" shear.toml --out sand --threads 1 --resume > sand-last.log 2>&1 &
-sand=$!
+
+# 3. LAMMPS from the same sample, in the background: newton on (the comparison), then newton off
+# (the same physics, other round-off: how fast two runs of one code part).
+$py "$here/to_lammps.py" sand/sample-p0_100kPa.h5 shear.toml .
 nsteps=$($py - <<'EOF'
 import math, tomllib
 c = tomllib.load(open("shear.toml", "rb"))
@@ -65,11 +47,30 @@ dt = float([l.split()[2] for l in open("vars.txt") if l.split()[1] == "dt"][0])
 print(int(math.ceil(c["shear"]["max_shear_strain"] / (c["shear"]["strain_rate"] * dt))) + 2)
 EOF
 )
-lmp -in "$here/shear.in" -log lammps.log -screen none $(cat vars.txt) -var nsteps "$nsteps" \
-    -var every 1000 -var dump 2000 -var xzfile 1 -var out lammps -var newton on
-lmp -in "$here/shear.in" -log lammps-off.log -screen none $(cat vars.txt) -var nsteps "$nsteps" \
-    -var every 1000 -var dump 2000 -var out lammps-off -var newton off
-wait "$sand"
+(lmp -in "$here/shear.in" -log lammps.log -screen none $(cat vars.txt) -var nsteps "$nsteps" \
+     -var every 1000 -var dump 2000 -var xzfile 1 -var out lammps -var newton on &&
+ lmp -in "$here/shear.in" -log lammps-off.log -screen none $(cat vars.txt) -var nsteps "$nsteps" \
+     -var every 1000 -var dump 2000 -var out lammps-off -var newton off) &
+lammps=$!
 
-# 4. The comparison.
+# 4. sandcell's shear in three pieces: to 200 steps before the tilt reaches L1/2, 5000 steps with a
+# series row every step (to see the step of the flip), then on to gamma = 0.6. A resumed run is
+# bitwise the uninterrupted one (apps/triaxial/README.md); only output.series_interval changes.
+first=$($py - <<'EOF'
+import h5py, tomllib
+c = tomllib.load(open("shear.toml", "rb"))
+dt = float([l.split()[2] for l in open("vars.txt") if l.split()[1] == "dt"][0])
+L = h5py.File("sand/sample-p0_100kPa.h5", "r")["cell"].attrs["length"]
+# tilt(n) = gamma_dot L3 dt (n - 1) (step 1 runs unsheared) reaches L1/2
+print(int(0.5 * L[0] / (c["shear"]["strain_rate"] * L[2] * dt)) + 1 - 200)
+EOF
+)
+rc=0; "$tri" shear.toml --out sand --threads 1 --resume --stop-after "$first" || rc=$?
+[ "$rc" -eq 3 ] || { echo "expected the stop (exit 3), got $rc"; exit 1; }
+rc=0; "$tri" shear-fine.toml --out sand --threads 1 --resume --stop-after 5000 || rc=$?
+[ "$rc" -eq 3 ] || { echo "expected the stop (exit 3), got $rc"; exit 1; }
+"$tri" shear.toml --out sand --threads 1 --resume
+wait "$lammps"
+
+# 5. The comparison.
 $py "$here/compare.py" --sandcell sand/sscv-p0_100kPa.h5 --lammps lammps --control lammps-off --out "$here"
