@@ -17,7 +17,8 @@ from .m_theta import lode_from_b  # noqa: E402
 
 NAN = float("nan")
 # the app's tests.path names, in the order of its registry (apps/triaxial/protocol/paths.cpp)
-PATHS = ("constant_p", "constant_sigma3", "strain", "undrained", "cyclic", "simple_shear", "simple_shear_cv", "rotation")
+PATHS = ("constant_p", "constant_sigma3", "strain", "undrained", "cyclic",
+         "simple_shear", "simple_shear_cv", "rotation")
 
 
 class InputError(Exception):
