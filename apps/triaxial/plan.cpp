@@ -122,10 +122,14 @@ void check_strain_per_step(const Plan& plan) {
   for (const TestSpec& t : config.tests) {
     if (t.path == ShearPath::rotation) continue;  // stress controlled: its rates are the servo's, capped
     if (t.path == ShearPath::strain) {
-      for (int a = 0; a < 3; ++a)
+      for (int a = 0; a < 3; ++a) {
         if (std::abs(config.shear.strain_rates[a]) * dt > k_max_strain_per_step)
           throw ConfigError(config.source + ": shear.strain_rates[" + std::to_string(a) +
                             "] = " + num(config.shear.strain_rates[a]) + " 1/s" + allowed);
+        if (std::abs(config.shear.shear_rates[a]) * dt > k_max_strain_per_step)
+          throw ConfigError(config.source + ": shear.shear_rates[" + std::to_string(a) +
+                            "] = " + num(config.shear.shear_rates[a]) + " 1/s" + allowed);
+      }
     } else if (const double rate = axial_rate(plan, t.p0); rate * dt > k_max_strain_per_step) {
       const std::string key = config.shear.inertial_number > 0.0
                                   ? "shear.inertial_number = " + num(config.shear.inertial_number) + " (" + num(rate) +

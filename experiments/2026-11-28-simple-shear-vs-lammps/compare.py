@@ -23,6 +23,7 @@ Writes comparison.csv, divergence.csv and comparison.png into --out and prints t
 """
 import argparse
 import os
+import tomllib
 
 import h5py
 import numpy as np
@@ -116,16 +117,13 @@ def main():
     rel_c_max = rel_c.max(axis=1)
 
     # mean overlap from p: p = (1/3V) sum_c f_n r ~ k_n d sum(delta) / (3V), N_c = Z N / 2
-    import tomllib
     cfg = tomllib.loads(f.attrs["config"] if isinstance(f.attrs["config"], str) else f.attrs["config"].decode())
     mat = cfg["material"]
     e_star = mat["young"] / (2 * (1 - mat["poisson"] ** 2))
-    m = f[sorted(snaps.keys())[0]].attrs.get("mass", None)
     mass = 4.0 / 3.0 * np.pi * radius[0] ** 3 * mat["density"]
     r_star, m_star, V = radius[0] / 2, mass / 2, cfg["contact"]["characteristic_velocity"]
     k_n = 16 / 15 * np.sqrt(r_star) * e_star * (15 * m_star * V * V / (16 * np.sqrt(r_star) * e_star)) ** 0.2
     mean_overlap = 3 * volume * p / (k_n * d * Z * n / 2) / radius[0]
-    del m
 
     out = args.out
     with open(os.path.join(out, "comparison.csv"), "w") as o:

@@ -142,6 +142,8 @@ TEST_CASE("triaxial: each class of bad input exits 2 naming the key, and clobber
       {"a rotation without its rate", replaced(base, "path = \"constant_p\"", "path = \"rotation\"") +
                                           "[rotation]\neta = 0.3\nramp_time = 0.01\n",
        "rotation.eta = 0.3, rotation.rate = 0, rotation.ramp_time = 0.01: tests.path = \"rotation\" needs all three"},
+      {"shear rates on a path with a servo", with("shear", "shear_rates = [0, 1, 0]"),
+       "shear.shear_rates: only path \"strain\" sets the cell's shear rates"},
       {"a rotation table with no rotation test", base + "[rotation]\neta = 0.3\n",
        "[rotation]: no test of tests.path is \"rotation\""},
   };

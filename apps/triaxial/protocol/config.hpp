@@ -58,6 +58,7 @@ struct ShearConfig {
   double critical_tolerance = 0.02;  // -, largest relative change of eta = q/p and p over the window (fitted line)
   double critical_tolerance_e = 0.005;  // -, largest change of e over the window (fitted line)
   Vec3 strain_rates = Vec3::Zero();     // 1/s per axis, compression positive, for path "strain"
+  Vec3 shear_rates = Vec3::Zero();      // 1/s, engineering shear rates xy xz yz (-L_ab, soil convention), path "strain"
   std::uint64_t steps = 0;              // steps of a strain-controlled stage
   double max_shear_strain = 0.0;        // -, simple shear paths: stop at this engineering shear strain
                                         // gamma = F_xz (0: not given; required by those paths)

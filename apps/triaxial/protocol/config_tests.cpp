@@ -40,6 +40,15 @@ void parse_shear(const toml::table& root, const std::string& source, ShearConfig
                "must be in [-1e6, 1e6] 1/s (compression positive)");
     h.strain_rates = Vec3(rates[0], rates[1], rates[2]);
   }
+  // The strain path's shear components (a general six-component strain path): -L_xy, -L_xz, -L_yz.
+  const std::vector<double> shears = s.numbers("shear_rates", "three finite engineering shear rates in 1/s");
+  if (!shears.empty()) {
+    if (shears.size() != 3) s.fail("shear_rates", std::to_string(shears.size()) + " values", "expected 3 rates (1/s)");
+    for (std::size_t k = 0; k < 3; ++k)
+      if (!(std::abs(shears[k]) <= 1e6))
+        s.fail("shear_rates[" + std::to_string(k) + "]", num(shears[k]), "must be in [-1e6, 1e6] 1/s (xy, xz, yz)");
+    h.shear_rates = Vec3(shears[0], shears[1], shears[2]);
+  }
   s.integer("steps", h.steps, 0, UINT64_MAX, "must be an integer >= 0");
   s.number("max_shear_strain", h.max_shear_strain, 1e-9, 1e3,
            "must be in (0, 1000] (engineering shear strain gamma = -F_xz of the simple shear paths)");
@@ -171,6 +180,9 @@ void check_shear_for_tests(const Config& c, const std::string& source) {
     if (!path.by_steps && !path.ramp && c.shear.ramp_strain > 0.0)
       throw ConfigError(source + ": shear.ramp_strain = " + num(c.shear.ramp_strain) + ": path \"" +
                         std::string(path.name) + "\" has no ramp; allowed: 0");
+    if (t.path != ShearPath::strain && !c.shear.shear_rates.isZero(0.0))
+      throw ConfigError(source + ": shear.shear_rates: only path \"strain\" sets the cell's shear rates (the others "
+                        "leave them to the servo: cell.shear); allowed: leave it out");
     if (t.path == ShearPath::strain && c.shear.steps == 0)
       throw ConfigError(source + ": shear.steps = 0: path \"strain\" needs a number of steps >= 1");
     if (t.path == ShearPath::strain && c.shear.ramp_strain > 0.0)

@@ -353,8 +353,10 @@ void start_test(const Protocol& protocol, const TestSpec& test, State& state) {
   state.cell.servo_integral.setZero();  // servo state resets between stages
   state.cell.shear_integral.setZero();
   state.cell.shear_rate.setZero();
-  if (test.path == ShearPath::strain)
+  if (test.path == ShearPath::strain) {
     state.cell.rate = -h.strain_rates;
+    state.cell.shear_rate = Vec3::Zero() - h.shear_rates;  // 0 - 0 = +0: no shear, an orthorhombic cell
+  }
   else if (test.path == ShearPath::cyclic || test.path == ShearPath::rotation ||
            test.path == ShearPath::simple_shear || test.path == ShearPath::simple_shear_cv)
     state.cell.rate.setZero();  // the path's first update sets every axis
