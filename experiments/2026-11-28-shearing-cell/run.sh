@@ -25,5 +25,5 @@ echo "killed at: $(tail -1 "$work/ss2.log")"
 PYTHONPATH=apps/analysis /usr/bin/python3 -m sandcell_analysis analyze "$work/ss1" "$work/rot" --out "$work/figures" \
     --title "sandcell shearing cell"
 cp "$work"/figures/shearing-*.png "$here/"
-/usr/bin/python3 "$here/summarize.py" "$work/ss1/ss-p0_500kPa.h5" "$work/rot/rot-b0.50-p0_500kPa.h5" > "$here/summary.csv"
+PYTHONPATH=apps/analysis /usr/bin/python3 "$here/summarize.py" "$work/ss1/ss-p0_500kPa.h5" "$work/rot/rot-b0.50-p0_500kPa.h5" > "$here/summary.csv"
 cat "$here/summary.csv"
