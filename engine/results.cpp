@@ -225,6 +225,11 @@ void ResultsFile::write_snapshot_unguarded(const State& state) {
   g.set_value<std::uint64_t>("step", state.clock.step);
   g.set_value<double>("time", state.clock.time);
   g.set_values<double>("cell_length", std::span<const double>(state.cell.length.data(), 3));
+  // A cell that shears: its basis's tilts and the flips (H = upper(length, tilt), F = H N H0^-1).
+  if (!state.cell.plain()) {
+    g.set_values<double>("cell_tilt", std::span<const double>(state.cell.tilt.data(), 3));
+    g.set_values<double>("cell_flip", std::span<const double>(state.cell.flip.data(), 3));
+  }
   std::size_t written = 0;
   const std::size_t n = state.particles.size();
   for_each_particle_field(state.particles, [&](const FieldInfo& info, const auto& v) {

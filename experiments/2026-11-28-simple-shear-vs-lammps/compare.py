@@ -78,6 +78,8 @@ def main():
     ap.add_argument("--lammps", required=True)
     ap.add_argument("--control", required=True)
     ap.add_argument("--out", default=".")
+    ap.add_argument("--sandcell-more", nargs="*", default=[], help="more sandcell results (other round-off)")
+    ap.add_argument("--lammps-more", nargs="*", default=[], help="more LAMMPS prefixes (other round-off)")
     ap.add_argument("--every", type=int, default=1000, help="compared output interval, steps")
     args = ap.parse_args()
 
@@ -191,17 +193,47 @@ def main():
     print("mean overlap / R: %.4f at gamma 0, %.4f at the end; largest overlap / R %.3f"
           % (mean_overlap[0], mean_overlap[-1], max_ov.max()))
 
-    print("\n## Means over gamma windows (after the trajectories part)\n")
-    print("| gamma | p sandcell (kPa) | p LAMMPS (kPa) | diff | -S_xz/p sandcell | -S_xz/p LAMMPS | diff | "
-          "std of p over the window / mean |")
-    print("|---|---|---|---|---|---|---|---|")
+    # realizations: the same scene and physics, other round-off (newton off; other neighbour skins)
+    sand_runs = [(gamma, S)]
+    for path in args.sandcell_more:
+        t = h5py.File(path, "r")["series"]
+        st = t["step"][:].astype(np.int64)
+        k = np.nonzero(np.isin(st, step))[0]
+        sand_runs.append((t["deformation"][:, 2][k], t["stress"][:][k]))
+    lmp_runs = [(gamma, L), (gamma, C)]
+    for prefix in args.lammps_more:
+        ms, _, M, _ = read_lammps_stress(prefix, volume)
+        k = np.nonzero(np.isin(ms, step))[0]
+        lmp_runs.append((gamma[np.searchsorted(step, ms[k])], M[k]))
+
+    def window(runs, lo, hi):
+        p_, t_ = [], []
+        for g, X in runs:
+            sel = (g >= lo) & (g < hi)
+            pp = X[sel, :3].mean(axis=1)
+            p_.append(pp.mean())
+            t_.append((-X[sel, 4] / pp).mean())
+        return np.array(p_), np.array(t_)
+
+    print("\n## Means over gamma windows: %d sandcell and %d LAMMPS runs (other round-off)\n"
+          % (len(sand_runs), len(lmp_runs)))
+    print("| gamma | p, sandcell (kPa): mean [range] | p, LAMMPS | difference of the means | "
+          "-S_xz/p, sandcell | -S_xz/p, LAMMPS | difference |")
+    print("|---|---|---|---|---|---|---|")
+    windows = []
     for lo in np.arange(0.0, 0.6, 0.1):
-        sel = (gamma >= lo) & (gamma < lo + 0.1)
-        ps, pl = p[sel].mean(), L[sel, :3].mean(axis=1).mean()
-        ts, tl = (-S[sel, 4] / p[sel]).mean(), (-L[sel, 4] / L[sel, :3].mean(axis=1)).mean()
-        print("| %.1f-%.1f | %.1f | %.1f | %+.2f %% | %.4f | %.4f | %+.2f %% | %.1f %% |"
-              % (lo, lo + 0.1, ps / 1e3, pl / 1e3, 100 * (pl / ps - 1), ts, tl, 100 * (tl / ts - 1),
-                 100 * p[sel].std() / ps))
+        ps, ts = window(sand_runs, lo, lo + 0.1)
+        pl, tl = window(lmp_runs, lo, lo + 0.1)
+        windows.append((lo, ps, pl, ts, tl))
+        print("| %.1f-%.1f | %.1f [%.1f, %.1f] | %.1f [%.1f, %.1f] | %+.1f %% | %.3f [%.3f, %.3f] | "
+              "%.3f [%.3f, %.3f] | %+.1f %% |"
+              % (lo, lo + 0.1, ps.mean() / 1e3, ps.min() / 1e3, ps.max() / 1e3, pl.mean() / 1e3, pl.min() / 1e3,
+                 pl.max() / 1e3, 100 * (pl.mean() / ps.mean() - 1), ts.mean(), ts.min(), ts.max(), tl.mean(),
+                 tl.min(), tl.max(), 100 * (tl.mean() / ts.mean() - 1)))
+    print("\nEach run's window means (p kPa, -S_xz/p), sandcell runs then LAMMPS runs:")
+    for lo, ps, pl, ts, tl in windows:
+        print("  %.1f-%.1f: " % (lo, lo + 0.1) + ", ".join("%.0f %.3f" % (a, b) for a, b in zip(ps / 1e3, ts)) +
+              " | " + ", ".join("%.0f %.3f" % (a, b) for a, b in zip(pl / 1e3, tl)))
 
     print("\n## Divergence (RMS of the y, z position differences / d)\n")
     print("| gamma | step | sandcell vs LAMMPS | LAMMPS newton on vs off |")

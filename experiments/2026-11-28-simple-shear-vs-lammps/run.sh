@@ -72,5 +72,48 @@ rc=0; "$tri" shear-fine.toml --out sand --threads 1 --resume --stop-after 5000 |
 "$tri" shear.toml --out sand --threads 1 --resume
 wait "$lammps"
 
-# 5. The comparison.
-$py "$here/compare.py" --sandcell sand/sscv-p0_100kPa.h5 --lammps lammps --control lammps-off --out "$here"
+# 5. More runs of the same scene and physics with other round-off, for the statistics after the
+# trajectories part: sandcell with other Verlet skins (list builds, flips, pair order), LAMMPS with
+# other neighbour skins; stress only.
+for skin in 3e-4 4e-4; do
+    mkdir -p "sand-skin$skin"
+    cp sand/sample-p0_100kPa.h5 "sand-skin$skin/"
+    sed -e "s/^rolling = \"none\"/rolling = \"none\"\nskin = $skin/" -e 's/^snapshot_interval = 2000/snapshot_interval = 0/' \
+        shear.toml > "shear-skin$skin.toml"
+done
+("$tri" shear-skin3e-4.toml --out sand-skin3e-4 --threads 1 --resume --allow-change contact.skin > sand-skin3e-4.log 2>&1 &&
+ "$tri" shear-skin4e-4.toml --out sand-skin4e-4 --threads 1 --resume --allow-change contact.skin > sand-skin4e-4.log 2>&1) &
+more=$!
+for skin in 3e-4 5e-4; do
+    sed "s/^-var skin .*/-var skin $skin/" vars.txt > "vars-skin$skin.txt"
+    lmp -in "$here/shear.in" -log "lammps-skin$skin.log" -screen none $(cat "vars-skin$skin.txt") -var nsteps "$nsteps" \
+        -var every 1000 -var dump 1000000000 -var out "lammps-skin$skin" -var newton on
+done
+
+# 6. The first 0.05 of strain, output every 200 steps, at restitution 0.5 and 1 (no damping), and
+# LAMMPS with its box deformed every 2 steps (a probe of the lag of its box behind the positions).
+sed -e 's/^-var gn .*/-var gn 0/' -e 's/^-var gt .*/-var gt 0/' vars.txt > vars-e1.0.txt
+for e in 0.5 1.0; do
+    mkdir -p "early/e$e/sand"
+    cp sand/sample-p0_100kPa.h5 "early/e$e/sand/"
+    sed -e "s/^restitution = 0.5/restitution = $e/" -e 's/^max_shear_strain = 0.6/max_shear_strain = 0.05/' \
+        -e 's/^series_interval = 1000/series_interval = 200/' -e 's/^snapshot_interval = 2000/snapshot_interval = 200/' \
+        shear.toml > "early-e$e.toml"
+    "$tri" "early-e$e.toml" --out "early/e$e/sand" --threads 1 --resume --allow-change material.restitution
+done
+early() {  # NAME VARS NEWTON DEFORM
+    lmp -in "$here/shear.in" -log "early/$1.log" -screen none $(cat "$2") -var nsteps 39130 -var every 200 -var dump 200 \
+        -var out "early/$1" -var newton "$3" -var deform "$4"
+}
+early e05-on vars.txt on 1
+early e05-off vars.txt off 1
+early e05-deform2 vars.txt on 2
+early e1-on vars-e1.0.txt on 1
+early e1-off vars-e1.0.txt off 1
+wait "$more"
+
+# 7. The comparison.
+$py "$here/compare.py" --sandcell sand/sscv-p0_100kPa.h5 --lammps lammps --control lammps-off \
+    --sandcell-more sand-skin3e-4/sscv-p0_100kPa.h5 sand-skin4e-4/sscv-p0_100kPa.h5 \
+    --lammps-more lammps-skin3e-4 lammps-skin5e-4 --out "$here"
+$py "$here/early.py" --dir early --out "$here"

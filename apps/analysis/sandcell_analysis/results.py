@@ -235,5 +235,12 @@ def read_snapshot(f, name, path):
     missing = [k for k in ("id", "position") if k not in g] + ([] if "cell_length" in g.attrs else ["cell_length"])
     if missing:
         raise InputError(f"{path}: snapshot {name} lacks {', '.join(missing)}")
+    # The readers of snapshots (localization) take the cell as orthorhombic, x = diag(L) s: a sheared
+    # cell's snapshots (their tilts, or a series whose cell_tilt is not zero) would be misread.
+    tilt = np.asarray(g.attrs["cell_tilt"], float) if "cell_tilt" in g.attrs else np.zeros(3)
+    series_tilt = f["series"]["cell_tilt"][:] if "series" in f and "cell_tilt" in f["series"] else np.zeros(3)
+    if np.any(tilt != 0.0) or np.any(series_tilt != 0.0):
+        raise InputError(f"{path}: snapshot {name}: the cell shears (cell_tilt not zero): the snapshot readers take "
+                         "an orthorhombic cell, and a sheared one is not supported yet")
     return int(g.attrs.get("step", int(name))), g["id"][:], np.asarray(g["position"][:], float), \
         np.asarray(g.attrs["cell_length"], float)
