@@ -143,13 +143,13 @@ void check_strain_per_step(const Plan& plan) {
 // The size of the results files, estimated before anything runs (measured: 300 and 1,200 spheres,
 // a snapshot every 10 steps, within 5 % above): a snapshot is 14 doubles a sphere
 // (ResultsFile::write_snapshot) and ~4 KiB of HDF5 headers (2.2 KiB) and XDMF entry (1.6 KiB); a
-// series row 99 doubles; a file ~1 MiB of first chunks (32 KiB for each of ~40 datasets). A test
+// series row 99 doubles; a file ~1.3 MiB of first chunks (32 KiB for each of ~40 datasets). A test
 // runs to max_axial_strain (+ ramp_strain for the ramp) at its rate at p0 (shear.steps on path
 // "strain"), an upper bound with stop_at_critical; a preparation at least the shrink of its cloud
 // at prepare.max_rate. Above output.max_size_gib the run is refused naming the interval that
 // costs most; above 1 GiB it is warned about at the start. Throws ConfigError.
 void estimate_output(Plan& plan, std::size_t spheres, double max_strain) {
-  constexpr double k_snapshot_sphere = 14 * 8, k_snapshot_header = 4096, k_row = 99 * 8, k_file = 1 << 20;
+  constexpr double k_snapshot_sphere = 14 * 8, k_snapshot_header = 4096, k_row = 99 * 8, k_file = 1.3 * (1 << 20);
   constexpr double k_warn = double(1 << 30);  // 1 GiB
   const Config& config = plan.config;
   const OutputConfig& o = config.output;
