@@ -123,7 +123,7 @@ TEST_CASE("triaxial: each class of bad input exits 2 naming the key, and clobber
       // A snapshot every step: 3,368 snapshots of 300 spheres x (112 B + 4 KiB) ~ 0.12 GiB, above a
       // limit of 0.05 GiB (the default limit, 64 GiB, is checked below on the embedded default).
       {"snapshots above output.max_size_gib", with("output", "snapshot_interval = 1\nmax_size_gib = 0.05"),
-       "output.snapshot_interval = 1: ~0.12 GiB of results (estimated: 1 test(s) x 3.37e+03 steps x 300 spheres); "
+       "output.snapshot_interval = 1: ~0.121 GiB of results (estimated: 1 test(s) x 3.37e+03 steps x 300 spheres); "
        "allowed: <= output.max_size_gib = 0.05 GiB: raise the interval to 34"},
       {"a size limit below what the intervals as set write", with("output", "max_size_gib = 1e-6"),
        "output.max_size_gib = 1e-06: below the ~"},
