@@ -194,6 +194,27 @@ TEST_CASE("triaxial: cell.shear = \"free\" holds the shear stresses of a constan
   }
   MESSAGE("free cell: worst 5-row mean |shear stress| / p = ", worst);
   CHECK(worst < 0.02);
+  // A custom path (undrained: the volume held by axes 2 and 3) keeps a free cell's shear stresses at
+  // zero too (the settings' stress-controlled components override the path's answer, servo.hpp).
+  write(dir / "undrained.toml", replaced(k_small, "path = \"constant_p\"\nb = 0.5", "path = \"undrained\"") +
+                                    "[cell]\nshear = \"free\"\n");
+  const Result u = run({(dir / "undrained.toml").string(), "--out", (dir / "u").string(), "--threads", "2"});
+  REQUIRE(u.code == 0);
+  const std::vector<double> su = dataset(dir / "u" / "u-p0_100kPa.h5", "/series/stress");
+  const std::vector<double> tu = dataset(dir / "u" / "u-p0_100kPa.h5", "/series/cell_tilt");
+  CHECK(std::any_of(tu.begin(), tu.end(), [](double t) { return t != 0.0; }));
+  double worst_u = 0.0;
+  for (std::size_t k = 5; k + 5 <= su.size() / 6; ++k) {
+    Vec3 tau = Vec3::Zero();
+    double p = 0.0;
+    for (std::size_t j = k; j < k + 5; ++j) {
+      tau += Vec3(su[6 * j + 3], su[6 * j + 4], su[6 * j + 5]) / 5.0;
+      p += (su[6 * j] + su[6 * j + 1] + su[6 * j + 2]) / 15.0;
+    }
+    worst_u = std::max(worst_u, tau.cwiseAbs().maxCoeff() / p);
+  }
+  MESSAGE("free cell, undrained: worst 5-row mean |shear stress| / p = ", worst_u);
+  CHECK(worst_u < 0.02);
   fs::remove_all(dir);
 }
 
