@@ -38,9 +38,7 @@ struct Cell {
   bool orthorhombic() const { return tilt.isZero(0.0) && shear_rate.isZero(0.0); }
   /// Whether the cell, its reference, its flips and its shear servo are all those of an
   /// orthorhombic cell (what a file need not record).
-  bool plain() const {
-    return orthorhombic() && tilt0.isZero(0.0) && flip.isZero(0.0) && shear_integral.isZero(0.0);
-  }
+  bool plain() const { return orthorhombic() && tilt0.isZero(0.0) && flip.isZero(0.0) && shear_integral.isZero(0.0); }
   /// The lattice basis H.
   Mat3 h() const { return upper(length, tilt); }
   /// The reference H0.

@@ -110,7 +110,8 @@ void check_ranges(const std::filesystem::path& path, const State& state) {
         !std::isfinite(state.particles.radius[k]))
       fail("particle " + std::to_string(k) + ": radius or mass not > 0");
   if (!(state.cell.length.minCoeff() > 0.0) || !state.cell.length.allFinite()) fail("cell lengths not > 0");
-  if (!state.cell.tilt.allFinite() || !state.cell.flip.allFinite() || state.cell.flip != state.cell.flip.array().round().matrix())
+  if (!state.cell.tilt.allFinite() || !state.cell.flip.allFinite() ||
+      state.cell.flip != state.cell.flip.array().round().matrix())
     fail("cell tilts not finite or flips not integers");
 }
 

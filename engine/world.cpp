@@ -56,6 +56,21 @@ void validate(const Model& model, const State& state) {
     if (!(state.cell.length[a] > 0.0) || !std::isfinite(state.cell.length[a]))
       throw std::invalid_argument("cell length " + std::to_string(a) + " = " + std::to_string(state.cell.length[a]) +
                                   ": must be > 0 m");
+  // A cell that shears: finite tilts and shear rates, whole flips (a cell too thin between its faces
+  // for the spheres is the broadphase's to name, with the widths, at the first list build).
+  static constexpr const char* components[3] = {"xy", "xz", "yz"};
+  for (int a = 0; a < 3; ++a) {
+    const auto check = [&](const char* key, double v, bool ok, const char* allowed) {
+      if (!ok)
+        throw std::invalid_argument(std::string("cell.") + key + "[" + components[a] + "] = " + std::to_string(v) +
+                                    ": " + allowed);
+    };
+    check("tilt", state.cell.tilt[a], std::isfinite(state.cell.tilt[a]), "must be finite (m)");
+    check("tilt0", state.cell.tilt0[a], std::isfinite(state.cell.tilt0[a]), "must be finite (m)");
+    check("shear_rate", state.cell.shear_rate[a], std::isfinite(state.cell.shear_rate[a]), "must be finite (1/s)");
+    const double n = state.cell.flip[a];
+    check("flip", n, std::isfinite(n) && n == std::round(n), "must be a whole number");
+  }
   // The broadphase builds images of -1, 0 or 1 per axis (the cell is wider than the cutoff); the
   // contact pass takes the shift from a table of those 27 (PairConstants).
   const ContactPairs& pairs = state.contacts.pairs;

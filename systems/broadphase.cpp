@@ -105,9 +105,9 @@ std::string unbuildable(const std::vector<ParticleId>& id, const std::vector<Vec
     int axis = 0;
     width.minCoeff(&axis);
     return "cell width " + std::string(cell.tilt.isZero(0.0) ? "L" : "(between faces) w") + std::to_string(axis + 1) +
-           " = " + std::to_string(width[axis]) +
-           " m is not larger than 2 r_max + skin = " + std::to_string(cutoff) + " m (r_max = " + std::to_string(r_max) +
-           " m, skin = " + std::to_string(skin) + " m): a sphere would meet its own periodic image";
+           " = " + std::to_string(width[axis]) + " m is not larger than 2 r_max + skin = " + std::to_string(cutoff) +
+           " m (r_max = " + std::to_string(r_max) + " m, skin = " + std::to_string(skin) +
+           " m): a sphere would meet its own periodic image";
   }
   return {};
 }
@@ -252,8 +252,8 @@ Flip reduce_basis(Cell& cell) {
 // Pass 2: fills each particle's slots of the new list (bp.next_pairs, bp.next_history), sorts them
 // canonically by (id_j, image) and carries each pair's histories from the old list by key.
 template <class Visit>
-void fill_pairs(const Visit& visit, std::size_t m, const ContactPairs& pairs, const Histories& hist,
-                const Flip& flip, BroadphaseScratch& bp, Executor& exec) {
+void fill_pairs(const Visit& visit, std::size_t m, const ContactPairs& pairs, const Histories& hist, const Flip& flip,
+                BroadphaseScratch& bp, Executor& exec) {
   const auto& history = hist.vec;
   const std::size_t n_history = hist.n_vec, n_scalar = hist.n_scalar;
   const std::size_t n = visit.x.size();

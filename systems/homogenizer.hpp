@@ -68,9 +68,9 @@ struct Measures {
   Vec3 strain = Vec3::Zero();              // -, eps_k = -ln(L_k / L0_k)
   Vec3 strain_engineering = Vec3::Zero();  // -, 1 - L_k / L0_k
   Vec3 strain_rate = Vec3::Zero();         // 1/s, -D_kk (= -L_kk: the diagonal of strain_rate_tensor)
-  double eps_v = 0.0;                      // -, eps1 + eps2 + eps3 (= -ln det F = trace of strain_tensor, tilted or not)
-  double eps_q = 0.0;                      // -, sqrt(2)/3 sqrt((e1-e2)^2 + (e2-e3)^2 + (e3-e1)^2): e_k = strain, or
-                                           // the principal_strain when the deformation is not diagonal (sheared)
+  double eps_v = 0.0;  // -, eps1 + eps2 + eps3 (= -ln det F = trace of strain_tensor, tilted or not)
+  double eps_q = 0.0;  // -, sqrt(2)/3 sqrt((e1-e2)^2 + (e2-e3)^2 + (e3-e1)^2): e_k = strain, or
+                       // the principal_strain when the deformation is not diagonal (sheared)
   // Tensor measures (systems/kinematics.hpp). For a cell that never sheared (diagonal F) the strain
   // tensor is diag(strain) bitwise.
   Mat3 deformation = Mat3::Identity();        // -, F = H N H0^-1 since the reference (Cell::deformation);
@@ -84,25 +84,25 @@ struct Measures {
   Mat3 stress_directions = Mat3::Identity();  // -, columns: their unit directions
   Vec3 principal_strain = Vec3::Zero();       // -, principal values of strain_tensor, descending
   Mat3 strain_directions = Mat3::Identity();  // -, columns: their unit directions
-  double alpha = 0.0;           // deg, in (-90, 90]: sigma1's direction in the xz plane from x toward z (alpha_deg)
-  double noncoaxiality = 0.0;   // deg, in [0, 90]: between the major principal directions of stress and
-                                // strain_rate_tensor (0 while the cell does not deform)
-  double void_ratio = 0.0;                 // -, V / V_s - 1
-  double solid_fraction = 0.0;             // -, V_s / V
-  std::size_t contacts = 0;                // touching pairs (overlap > 0)
-  std::size_t rattlers = 0;                // particles with fewer than 2 contacts
-  double z = 0.0;                          // -, 2 N_c / N_p
-  double z_mech = 0.0;                     // -, 2 N_c' / N_p' without rattlers (and their contacts)
-  Mat3 fabric = Mat3::Zero();              // -, <n (x) n> over touching contacts
-  double unbalanced = 0.0;                 // -, mean |F_net| / mean |f_contact|
-  double kinetic_energy = 0.0;             // J, fluctuating translational + rotational
-  double elastic_energy = 0.0;             // J, stored in the contacts: normal Hertz 8/15 E* sqrt(R*) delta^(5/2),
-                                           // tangential |F_t^el|^2 / (2 k_t), rolling |M|^2 / (2 k_r)
-  double max_overlap_ratio = 0.0;          // -, largest delta / min(R_i, R_j) over touching contacts
-  double inertial_number = 0.0;            // -, (eps_dot_1 - eps_dot_3) d50 sqrt(rho / p), principal rates (of
-                                           // strain_rate_tensor when the cell shears)
-  double inertial_number_axial = 0.0;      // -, |eps_dot_1| d50 sqrt(rho / p): axis 1 alone, the form a set
-                                           // inertial number (ServoSettings::inertial_number) controls
+  double alpha = 0.0;              // deg, in (-90, 90]: sigma1's direction in the xz plane from x toward z (alpha_deg)
+  double noncoaxiality = 0.0;      // deg, in [0, 90]: between the major principal directions of stress and
+                                   // strain_rate_tensor (0 while the cell does not deform)
+  double void_ratio = 0.0;         // -, V / V_s - 1
+  double solid_fraction = 0.0;     // -, V_s / V
+  std::size_t contacts = 0;        // touching pairs (overlap > 0)
+  std::size_t rattlers = 0;        // particles with fewer than 2 contacts
+  double z = 0.0;                  // -, 2 N_c / N_p
+  double z_mech = 0.0;             // -, 2 N_c' / N_p' without rattlers (and their contacts)
+  Mat3 fabric = Mat3::Zero();      // -, <n (x) n> over touching contacts
+  double unbalanced = 0.0;         // -, mean |F_net| / mean |f_contact|
+  double kinetic_energy = 0.0;     // J, fluctuating translational + rotational
+  double elastic_energy = 0.0;     // J, stored in the contacts: normal Hertz 8/15 E* sqrt(R*) delta^(5/2),
+                                   // tangential |F_t^el|^2 / (2 k_t), rolling |M|^2 / (2 k_r)
+  double max_overlap_ratio = 0.0;  // -, largest delta / min(R_i, R_j) over touching contacts
+  double inertial_number = 0.0;    // -, (eps_dot_1 - eps_dot_3) d50 sqrt(rho / p), principal rates (of
+                                   // strain_rate_tensor when the cell shears)
+  double inertial_number_axial = 0.0;  // -, |eps_dot_1| d50 sqrt(rho / p): axis 1 alone, the form a set
+                                       // inertial number (ServoSettings::inertial_number) controls
 };
 
 struct MeasureOptions {

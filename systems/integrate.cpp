@@ -53,8 +53,7 @@ inline Vec3 affine(const Vec3& rate, const Vec3& shear, const Vec3& x) {
 // two_kicks_drift in a shearing cell (no prefetch: the tilted cell's cost is measured apart).
 void two_kicks_drift_sheared(double dt, const Vec3& rate, const Vec3& shear, const Vec3* __restrict f,
                              const Vec3* __restrict t, const double* __restrict m, const double* __restrict inv_i,
-                             Vec3* __restrict x, Vec3* __restrict v, Vec3* __restrict w, std::size_t b,
-                             std::size_t e) {
+                             Vec3* __restrict x, Vec3* __restrict v, Vec3* __restrict w, std::size_t b, std::size_t e) {
   const double half_dt = 0.5 * dt;
   for (std::size_t k = b; k < e; ++k) {
     const Vec3 dv = f[k] * (half_dt / m[k]);

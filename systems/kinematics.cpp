@@ -89,7 +89,7 @@ double axes_rotation_deg(const Mat3& sym) {
 double alpha_deg(const Mat3& sym) {
   const double xz = 0.5 * (sym(0, 2) + sym(2, 0));
   const double a = 0.5 * std::atan2(2.0 * xz, sym(0, 0) - sym(2, 2)) * k_deg;  // in [-90, 90]
-  return a <= -90.0 ? a + 180.0 : a;  // the same direction: (-90, 90]
+  return a <= -90.0 ? a + 180.0 : a;                                           // the same direction: (-90, 90]
 }
 
 double noncoaxiality_deg(const Mat3& stress, const Mat3& strain_increment) {

@@ -31,9 +31,9 @@ void validate(const ServoSettings& servo) {
         fail(std::string("shear_target[") + names[k] + "]", servo.shear_target[k], "must be finite (Pa)");
       any_shear_stress = any_shear_stress || servo.shear_control[k] == AxisControl::stress;
     }
-  const bool diagonal_stress = spec.answer == nullptr && (servo.control[0] == AxisControl::stress ||
-                                                          servo.control[1] == AxisControl::stress ||
-                                                          servo.control[2] == AxisControl::stress);
+  const bool diagonal_stress =
+      spec.answer == nullptr && (servo.control[0] == AxisControl::stress || servo.control[1] == AxisControl::stress ||
+                                 servo.control[2] == AxisControl::stress);
   const bool any_stress = diagonal_stress || any_shear_stress || servo.path == StressPath::simple_shear ||
                           servo.path == StressPath::rotation;
   if (any_stress || servo.path == StressPath::custom) {
@@ -211,8 +211,8 @@ CellRates servo_rates(const ServoSettings& servo, const Mat3& stress, Vec3* inte
   return {rate, shear};
 }
 
-Vec3 custom_strain_rates(const ServoSettings& servo, const PathTargets& targets, const PathInput& input,
-                         Vec3* integral, Vec3* shear_out, Vec3* shear_integral) {
+Vec3 custom_strain_rates(const ServoSettings& servo, const PathTargets& targets, const PathInput& input, Vec3* integral,
+                         Vec3* shear_out, Vec3* shear_integral) {
   const Vec3 sigma = input.stress.diagonal();
   double scale = std::abs(sigma.mean());
   int volume_axes = 0;

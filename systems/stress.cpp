@@ -20,8 +20,8 @@ Mat3 contact_stress_sum(const ContactPairs& pairs, const std::vector<Vec3>& forc
 }
 
 Mat3 contact_stress(const State& state, Executor& exec) {
-  const Mat3 sum = contact_stress_sum(state.contacts.pairs, state.contacts.forces.force, state.particles.position,
-                                      state.cell, exec);
+  const Mat3 sum =
+      contact_stress_sum(state.contacts.pairs, state.contacts.forces.force, state.particles.position, state.cell, exec);
   const Mat3 stress = sum / state.cell.volume();
   return 0.5 * (stress + stress.transpose());
 }

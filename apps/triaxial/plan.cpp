@@ -76,8 +76,8 @@ void check_run_lengths(const Plan& plan, double max_strain) {
   for (const TestSpec& t : config.tests) {
     if (t.path == ShearPath::strain) continue;
     const double rate = t.path == ShearPath::rotation ? 0.0 : axial_rate(plan, t.p0);
-    const double steps = test_steps(plan, t, max_strain) - (t.path == ShearPath::rotation ? 0.0
-                                                            : config.shear.ramp_strain / (rate * m.dt));
+    const double steps = test_steps(plan, t, max_strain) -
+                         (t.path == ShearPath::rotation ? 0.0 : config.shear.ramp_strain / (rate * m.dt));
     if (t.path == ShearPath::rotation && !(steps < 1e10))
       throw ConfigError(src + ": rotation.rate = " + num(config.rotation.rate) + " degrees/s: the test would take " +
                         num(steps, "%.2g") + " steps; allowed: up to 1e10");

@@ -87,6 +87,11 @@ def main():
     s = f["series"]
     step_all = s["step"][:].astype(np.int64)
     tilt_all = s["cell_tilt"][:, 1]
+    # gamma = |F_xz|: the app's simple shear paths drove L_xz = +rate (F_xz > 0) before commit
+    # 1244a26 and L_xz = -rate since (the soil convention gamma = -F_xz); both codes shear alike
+    F_all = s["deformation"][:, 2]
+    sign = 1.0 if F_all[-1] >= 0 else -1.0
+    gamma_all = sign * F_all
     snaps = f["snapshots"]
     first = snaps[sorted(snaps.keys())[0]]
     length = np.array(first.attrs["cell_length"])
@@ -98,7 +103,7 @@ def main():
     _, uniq = np.unique(step_all[keep], return_index=True)
     rows = np.nonzero(keep)[0][uniq]
     step = step_all[rows]
-    gamma = s["deformation"][:, 2][rows]
+    gamma = gamma_all[rows]
     S = s["stress"][:][rows]
     p = S[:, :3].mean(axis=1)
     Z = s["Z"][:][rows]
@@ -149,7 +154,7 @@ def main():
         order = np.argsort(g["id"][:])
         xs = g["position"][:][order]
         row = np.nonzero(step_all == st)[0]
-        gam = s["deformation"][row[0], 2] if len(row) else np.nan
+        gam = gamma_all[row[0]] if len(row) else np.nan
         div.append((st, gam, rms_yz(xs, lpos[st], length) / d, rms_yz(lpos[st], cpos[st], length) / d))
     div = np.array(div)
     with open(os.path.join(out, "divergence.csv"), "w") as o:
@@ -159,9 +164,9 @@ def main():
 
     # flips: LAMMPS's tilt of every step (the box of that step's forces); sandcell's single-step rows
     xz = np.loadtxt(args.lammps + ".xz.txt")
-    drop = np.nonzero(np.diff(xz[:, 1]) < 0)[0]
+    drop = np.nonzero(np.abs(np.diff(xz[:, 1])) > 0.25 * length[0])[0]
     lmp_flips = [int(xz[k + 1, 0]) for k in drop]
-    sdrop = np.nonzero(np.diff(tilt_all) < 0)[0]
+    sdrop = np.nonzero(np.abs(np.diff(tilt_all)) > 0.25 * length[0])[0]
     sand_flips = [(int(step_all[k]), int(step_all[k + 1])) for k in sdrop]
 
     # ------------------------------------------------------------------ report
@@ -199,7 +204,7 @@ def main():
         t = h5py.File(path, "r")["series"]
         st = t["step"][:].astype(np.int64)
         k = np.nonzero(np.isin(st, step))[0]
-        sand_runs.append((t["deformation"][:, 2][k], t["stress"][:][k]))
+        sand_runs.append((sign * t["deformation"][:, 2][k], t["stress"][:][k]))
     lmp_runs = [(gamma, L), (gamma, C)]
     for prefix in args.lammps_more:
         ms, _, M, _ = read_lammps_stress(prefix, volume)
@@ -250,22 +255,23 @@ def main():
                   "(e-folding strain %.4f), %d snapshots" % (name, slope, 1 / slope, sel.sum()))
 
     print("\n## Flips")
-    print("LAMMPS: box flipped at step(s) %s (gamma %s)" % (lmp_flips, ["%.4f" % (st * 0 + g) for st, g in
-          zip(lmp_flips, np.interp(lmp_flips, step_all[rows], s["deformation"][:, 2][rows]))]))
-    print("sandcell: tilt reduced between rows %s" % sand_flips)
-    gam_l = (lxz[i_l] / length[2])
-    print("LAMMPS tilt / L3 at the compared rows before the first flip minus sandcell's F_xz: %.3g (one step: %.3g)"
-          % (np.median((gam_l - gamma)[gamma < 0.4]), gamma[1] / (step[1] - 1) if step[1] > 1 else np.nan))
+    print("LAMMPS: box flipped at step(s) %s (gamma %s)" % (
+        lmp_flips, ", ".join("%.5f" % g for g in np.interp(lmp_flips, step_all, gamma_all))))
+    print("sandcell: tilt flipped between the rows of steps %s (gamma %s)" % (
+        sand_flips, ", ".join("%.5f" % gamma_all[k + 1] for k in sdrop)))
+    before = gamma < 0.45
+    per_step = gamma[1] / (step[1] - 1)
+    print("LAMMPS's tilt / L3 (the box of the step's forces) minus sandcell's, before the flips: "
+          "%.3f steps of shear" % np.median((sign * lxz[i_l][before] / length[2] - gamma[before]) / per_step))
 
-    plot(out, step, gamma, S, L, p, rel, rel_max, rel_c_max, div, lmp_flips, step_all, s)
+    plot(out, gamma, S, L, rel, rel_max, rel_c_max, div, np.interp(lmp_flips, step_all, gamma_all))
 
 
-def plot(out, step, gamma, S, L, p, rel, rel_max, rel_c_max, div, lmp_flips, step_all, s):
+def plot(out, gamma, S, L, rel, rel_max, rel_c_max, div, gflip):
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    gflip = np.interp(lmp_flips, step_all, s["deformation"][:, 2]) if lmp_flips else []
     fig, ax = plt.subplots(2, 2, figsize=(13, 9), constrained_layout=True)
     colors = ["C0", "C1", "C2", "C3", "C4", "C5"]
     a = ax[0, 0]
@@ -280,7 +286,7 @@ def plot(out, step, gamma, S, L, p, rel, rel_max, rel_c_max, div, lmp_flips, ste
         a.plot(gamma, S[:, c] / 1e3, color=colors[c], lw=1.2, label="S_%s sandcell" % COMP[c])
         a.plot(gamma, L[:, c] / 1e3, color=colors[c], lw=1.0, ls="--", label="S_%s LAMMPS" % COMP[c])
     a.set_ylabel("shear stress, kPa")
-    a.set_title("shear stresses (S_xz < 0: resists the shear, compression-positive sign)")
+    a.set_title("shear stresses (compression positive)")
     a.legend(fontsize=8, ncol=2)
     a = ax[1, 0]
     for c in range(6):
@@ -290,7 +296,7 @@ def plot(out, step, gamma, S, L, p, rel, rel_max, rel_c_max, div, lmp_flips, ste
                label="largest, LAMMPS newton on vs off")
     a.axhline(0.02, color="r", ls=":", lw=1.5, label="2 %")
     a.set_ylabel("|S_sandcell - S_LAMMPS| / p")
-    a.set_xlabel("gamma = F_xz")
+    a.set_xlabel("gamma = |F_xz|")
     a.set_ylim(1e-6, 1)
     a.set_title("relative differences")
     a.legend(fontsize=8, ncol=2, loc="lower right")

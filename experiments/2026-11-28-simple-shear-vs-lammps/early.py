@@ -6,10 +6,11 @@
 DIR holds, for each restitution e in 0.5 and 1.0, sandcell's results e<e>/sand/sscv-p0_100kPa.h5
 (series and snapshots every 200 steps) and LAMMPS's e<e>-on.* (newton on) and e<e>-off.* (newton
 off) outputs of shear.in, and e05-deform2.* (e = 0.5, newton on, the box deformed every 2 steps: the
-lag of LAMMPS's box behind the positions doubled). With e = 1 there is no damping: the two codes' contact laws then differ
-only by the levers (LAMMPS R, sandcell R - delta/2); with e = 0.5 also by the damping of a sliding
-contact (LIGGGHTS/sandcell: none, the spring force capped; LAMMPS gran/hooke/history: spring plus
-dashpot capped together, README.md). Writes OUT/early.csv and OUT/early.png and prints a table.
+lag of LAMMPS's box behind the positions doubled). With e = 1 there is no damping: the two codes'
+contact laws then differ only by the levers (LAMMPS R, sandcell R - delta/2); with e = 0.5 also by
+the damping of a sliding contact (LIGGGHTS/sandcell: none, the spring force capped; LAMMPS
+gran/hooke/history: spring plus dashpot capped together, README.md). Writes OUT/early.csv and
+OUT/early.png and prints a table.
 """
 import argparse
 import os
@@ -17,7 +18,7 @@ import os
 import h5py
 import numpy as np
 
-from compare import COMP, read_lammps_positions, read_lammps_stress, rms_yz
+from compare import read_lammps_positions, read_lammps_stress, rms_yz
 
 
 def one(dirname, e):
@@ -30,7 +31,7 @@ def one(dirname, e):
     d = 2 * first["radius"][0]
     n = len(first["radius"])
     step = s["step"][:].astype(np.int64)
-    gamma = s["deformation"][:, 2]
+    gamma = np.abs(s["deformation"][:, 2])  # the direction of the shear: compare.py
     S = s["stress"][:]
     p = S[:, :3].mean(axis=1)
     on = os.path.join(dirname, "e%s-on" % ("05" if e == "0.5" else "1"))

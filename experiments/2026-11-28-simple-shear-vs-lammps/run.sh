@@ -4,10 +4,10 @@
 #   experiments/2026-11-28-simple-shear-vs-lammps/run.sh [TRIAXIAL] [SCRATCH]
 #
 # TRIAXIAL: sandcell's triaxial app (default build/release/apps/triaxial/triaxial);
-# SCRATCH: a directory for the runs (default /tmp/lmpcmp/run; about 200 MB, emptied first).
+# SCRATCH: a directory for the runs (default /tmp/lmpcmp/run; about 300 MB, emptied first).
 # Needs Debian's lammps (`lmp`, GRANULAR) and /usr/bin/python3 with h5py, numpy, matplotlib.
-# Writes comparison.csv, divergence.csv and comparison.png beside this script and prints the tables
-# of README.md. About 15-25 min on 2 cores (sandcell and LAMMPS side by side).
+# Writes comparison.csv, divergence.csv and comparison.png beside this script, prints the tables
+# of README.md, and early.csv, early.png. About 25 min on 2 cores (sandcell and LAMMPS side by side).
 set -euo pipefail
 here=$(cd "$(dirname "$0")" && pwd)
 root=$(cd "$here/../.." && pwd)
@@ -37,8 +37,11 @@ sed 's/^series_interval = 1000/series_interval = 1/' shear.toml > shear-fine.tom
 "$tri" shear.toml --out sand --threads 1 --prepare-only
 
 # 3. LAMMPS from the same sample, in the background: newton on (the comparison), then newton off
-# (the same physics, other round-off: how fast two runs of one code part).
-$py "$here/to_lammps.py" sand/sample-p0_100kPa.h5 shear.toml .
+# (the same physics, other round-off: how fast two runs of one code part). The direction of the
+# shear (the sign of L_xz) is read from sandcell's checkpoint two steps in.
+rc=0; "$tri" shear.toml --out sand --threads 1 --resume --stop-after 2 || rc=$?
+[ "$rc" -eq 3 ] || { echo "expected the stop (exit 3), got $rc"; exit 1; }
+$py "$here/to_lammps.py" sand/sample-p0_100kPa.h5 shear.toml sand/sscv-p0_100kPa.checkpoint.h5 .
 nsteps=$($py - <<'EOF'
 import math, tomllib
 c = tomllib.load(open("shear.toml", "rb"))
@@ -53,16 +56,16 @@ EOF
      -var every 1000 -var dump 2000 -var out lammps-off -var newton off) &
 lammps=$!
 
-# 4. sandcell's shear in three pieces: to 200 steps before the tilt reaches L1/2, 5000 steps with a
-# series row every step (to see the step of the flip), then on to gamma = 0.6. A resumed run is
-# bitwise the uninterrupted one (apps/triaxial/README.md); only output.series_interval changes.
+# 4. sandcell's shear in three more pieces: to 200 steps before the tilt reaches +-L1/2, 5000 steps
+# with a series row every step (to see the step of the flip), then on to gamma = 0.6. A resumed run
+# is bitwise the uninterrupted one (apps/triaxial/README.md); only output.series_interval changes.
 first=$($py - <<'EOF'
 import h5py, tomllib
 c = tomllib.load(open("shear.toml", "rb"))
 dt = float([l.split()[2] for l in open("vars.txt") if l.split()[1] == "dt"][0])
 L = h5py.File("sand/sample-p0_100kPa.h5", "r")["cell"].attrs["length"]
-# tilt(n) = gamma_dot L3 dt (n - 1) (step 1 runs unsheared) reaches L1/2
-print(int(0.5 * L[0] / (c["shear"]["strain_rate"] * L[2] * dt)) + 1 - 200)
+# |tilt(n)| = gamma_dot L3 dt (n - 1) (step 1 runs unsheared) reaches L1/2; 2 steps are done
+print(int(0.5 * L[0] / (c["shear"]["strain_rate"] * L[2] * dt)) + 1 - 200 - 2)
 EOF
 )
 rc=0; "$tri" shear.toml --out sand --threads 1 --resume --stop-after "$first" || rc=$?

@@ -1,16 +1,18 @@
 #!/usr/bin/python3
 """sandcell's prepared sample -> LAMMPS data file and the pair constants (used by run.sh).
 
-    to_lammps.py SAMPLE.h5 CONFIG.toml OUT_DIR
+    to_lammps.py SAMPLE.h5 CONFIG.toml CHECKPOINT.h5 OUT_DIR
 
 SAMPLE.h5 is the sample the shear test starts from (sample-p0_*.h5, a sandcell checkpoint),
-CONFIG.toml the test's config (shear.toml). Writes OUT_DIR/sample.data
-(atom_style sphere, triclinic box with zero tilt, positions, fluctuating velocities v~ and angular
-velocities at full precision) and OUT_DIR/vars.txt (one `-var NAME VALUE` a line for shear.in):
-the linear spring-dashpot constants of LIGGGHTS `model hooke` (docs/physics.md section 2.1) that
-sandcell uses, in pair_style gran/hooke/history's units (kn, kt in N/m; gamma_n, gamma_t in 1/s,
-LAMMPS multiplies them by m* = m_i m_j / (m_i + m_j)), the time step, the sphere mass and the affine
-velocity of the top of the cell, gamma_dot L_z.
+CONFIG.toml the test's config (shear.toml), CHECKPOINT.h5 the test's checkpoint a few steps in (its
+cell's velocity gradient L_xz: the direction of the shear, which LAMMPS's erate takes with its sign;
+the app's simple shear paths drove L_xz = +shear.strain_rate before commit 1244a26 and -rate since).
+Writes OUT_DIR/sample.data (atom_style sphere, triclinic box with zero tilt, positions,
+fluctuating velocities v~ and angular velocities at full precision) and OUT_DIR/vars.txt (one
+`-var NAME VALUE` a line for shear.in): the linear spring-dashpot constants of LIGGGHTS `model
+hooke` (docs/physics.md section 2.1) that sandcell uses, in pair_style gran/hooke/history's units
+(kn, kt in N/m; gamma_n, gamma_t in 1/s, LAMMPS multiplies them by m* = m_i m_j / (m_i + m_j)), the
+friction, the time step, the sphere mass, erate = L_xz and the neighbour skin.
 """
 import math
 import sys
@@ -20,7 +22,7 @@ import h5py
 import numpy as np
 
 
-def main(sample, config, out):
+def main(sample, config, checkpoint, out):
     f = h5py.File(sample, "r")
     par = f["particles"]
     ids = par["id"][:]
@@ -50,7 +52,9 @@ def main(sample, config, out):
     V = cfg["contact"]["characteristic_velocity"]
     assert cfg["contact"]["normal"] == "hooke" and cfg["contact"]["tangential"] == "history"
     assert cfg["contact"]["rolling"] == "none"
-    rate = cfg["shear"]["strain_rate"]
+    rate = float(h5py.File(checkpoint, "r")["cell"].attrs["shear_rate"][1])  # L_xz, 1/s, signed
+    if abs(abs(rate) / cfg["shear"]["strain_rate"] - 1.0) > 1e-12:
+        sys.exit("the checkpoint's L_xz %g is not +-shear.strain_rate" % rate)
     # docs/physics.md section 2 and 2.1 (systems/laws/hooke.hpp), for two equal spheres
     e_star = 1.0 / (2.0 * (1.0 - nu * nu) / E)
     r_star = r[0] * r[0] / (r[0] + r[0])
@@ -83,4 +87,4 @@ def main(sample, config, out):
 
 
 if __name__ == "__main__":
-    main(*sys.argv[1:4])
+    main(*sys.argv[1:5])

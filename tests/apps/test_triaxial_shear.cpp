@@ -35,15 +35,16 @@ std::string replaced(std::string c, const std::string& from, const std::string& 
 // 100 steps (gamma 0.45 % a row); the watch's window 5 % of gamma.
 std::string simple_shear_config() {
   return replaced(replaced(replaced(k_small, "strain_rate = 2.0\nmax_axial_strain = 0.03",
-                               "strain_rate = 10.0\nramp_strain = 0.05\nmax_shear_strain = 2.2"),
-                      "path = \"constant_p\"\nb = 0.5", "path = \"simple_shear\""),
-             "plot = false", "plot = false\n[watch]\nwindow = 0.05\n[cell]\nshear = \"free\"");
+                                    "strain_rate = 10.0\nramp_strain = 0.05\nmax_shear_strain = 2.2"),
+                           "path = \"constant_p\"\nb = 0.5", "path = \"simple_shear\""),
+                  "plot = false", "plot = false\n[watch]\nwindow = 0.05\n[cell]\nshear = \"free\"");
 }
 
 }  // namespace
 
-TEST_CASE("triaxial: simple shear to gamma = 2.2 at constant normal stress flips the cell, holds S_zz, and is "
-          "bitwise the same on 1 thread and stopped and resumed on 2 and 3") {
+TEST_CASE(
+    "triaxial: simple shear to gamma = 2.2 at constant normal stress flips the cell, holds S_zz, and is "
+    "bitwise the same on 1 thread and stopped and resumed on 2 and 3") {
   const fs::path dir = fresh_dir("simple_shear");
   write(dir / "ss.toml", simple_shear_config());
   const fs::path a = dir / "a", b = dir / "b";
@@ -119,11 +120,10 @@ TEST_CASE("triaxial: the principal stresses turn 180 deg at constant p, b and q:
   const fs::path dir = fresh_dir("rotation");
   // q = 0.3 p0 raised over 0.02 s, then sigma1 turned at 3,600 deg/s (0.05 s, 11,000 steps); a row
   // every 20 steps (0.3 deg), so the watch's window of 0.1 rad (5.7 deg) holds 19.
-  const std::string config =
-      replaced(replaced(replaced(k_small, "strain_rate = 2.0\nmax_axial_strain = 0.03\n", ""), "path = \"constant_p\"",
-                        "path = \"rotation\""),
-               "series_interval = 100", "series_interval = 20") +
-      "[rotation]\neta = 0.3\nrate = 3600.0\nramp_time = 0.02\n[watch]\nwindow = 0.1\n";
+  const std::string config = replaced(replaced(replaced(k_small, "strain_rate = 2.0\nmax_axial_strain = 0.03\n", ""),
+                                               "path = \"constant_p\"", "path = \"rotation\""),
+                                      "series_interval = 100", "series_interval = 20") +
+                             "[rotation]\neta = 0.3\nrate = 3600.0\nramp_time = 0.02\n[watch]\nwindow = 0.1\n";
   write(dir / "rot.toml", config);
   const Result r = run({(dir / "rot.toml").string(), "--out", dir.string(), "--threads", "2"});
   INFO(r.out, r.err);
@@ -164,8 +164,9 @@ TEST_CASE("triaxial: the principal stresses turn 180 deg at constant p, b and q:
   fs::remove_all(dir);
 }
 
-TEST_CASE("triaxial: cell.shear = \"free\" holds the shear stresses of a constant-p test near zero, and \"fixed\" keeps "
-          "the cell orthorhombic") {
+TEST_CASE(
+    "triaxial: cell.shear = \"free\" holds the shear stresses of a constant-p test near zero, and \"fixed\" keeps "
+    "the cell orthorhombic") {
   const fs::path dir = fresh_dir("free_cell");
   write(dir / "fixed.toml", k_small);
   write(dir / "free.toml", k_small + "[cell]\nshear = \"free\"\n");
@@ -196,8 +197,8 @@ TEST_CASE("triaxial: cell.shear = \"free\" holds the shear stresses of a constan
   CHECK(worst < 0.02);
   // A custom path (undrained: the volume held by axes 2 and 3) keeps a free cell's shear stresses at
   // zero too (the settings' stress-controlled components override the path's answer, servo.hpp).
-  write(dir / "undrained.toml", replaced(k_small, "path = \"constant_p\"\nb = 0.5", "path = \"undrained\"") +
-                                    "[cell]\nshear = \"free\"\n");
+  write(dir / "undrained.toml",
+        replaced(k_small, "path = \"constant_p\"\nb = 0.5", "path = \"undrained\"") + "[cell]\nshear = \"free\"\n");
   const Result u = run({(dir / "undrained.toml").string(), "--out", (dir / "u").string(), "--threads", "2"});
   REQUIRE(u.code == 0);
   const std::vector<double> su = dataset(dir / "u" / "u-p0_100kPa.h5", "/series/stress");

@@ -200,9 +200,9 @@ TEST_CASE("measures: an orthorhombic cell keeps the arithmetic of its strains, i
     CHECK(m.strain_rate[a] == -c.rate[a]);
   }
   CHECK(m.eps_v == e.sum());
-  CHECK(m.eps_q == std::sqrt(2.0) / 3.0 *
-                       std::sqrt((e[0] - e[1]) * (e[0] - e[1]) + (e[1] - e[2]) * (e[1] - e[2]) +
-                                 (e[2] - e[0]) * (e[2] - e[0])));
+  CHECK(m.eps_q ==
+        std::sqrt(2.0) / 3.0 *
+            std::sqrt((e[0] - e[1]) * (e[0] - e[1]) + (e[1] - e[2]) * (e[1] - e[2]) + (e[2] - e[0]) * (e[2] - e[0])));
   const double gdot = m.strain_rate.maxCoeff() - m.strain_rate.minCoeff();
   CHECK(m.inertial_number == gdot * o.d50 * std::sqrt(o.density / m.inv.p));
   // The tensors: diagonal, exactly the axes' values; principal values the strains sorted.
@@ -219,8 +219,8 @@ TEST_CASE("measures: an orthorhombic cell keeps the arithmetic of its strains, i
 
 TEST_CASE("measures: a sheared cell's strain is the log strain of F, eps_q its deviatoric invariant, gamma -F_ab") {
   World world = chain_world([](Cell& c) {
-    c.length[2] = 9.9e-3;            // 1 % shorter along z
-    c.tilt = Vec3(0.0, 2e-3, 0.0);   // xz, after one flip: F_xz = (L1 + xz) / L3_0 = 2.2
+    c.length[2] = 9.9e-3;           // 1 % shorter along z
+    c.tilt = Vec3(0.0, 2e-3, 0.0);  // xz, after one flip: F_xz = (L1 + xz) / L3_0 = 2.2
     c.flip = Vec3(0.0, 1.0, 0.0);
     c.rate = Vec3(0.0, 0.0, -1.0);
     c.shear_rate = Vec3(0.0, -100.0, 0.0);  // gamma_dot_xz = 100 1/s
@@ -239,9 +239,9 @@ TEST_CASE("measures: a sheared cell's strain is the log strain of F, eps_q its d
   CHECK(std::abs(m.eps_v - m.strain_tensor.trace()) <= 1e-14);
   const Vec3 e = principal(m.strain_tensor).values;
   CHECK(m.principal_strain == e);
-  CHECK(m.eps_q == std::sqrt(2.0) / 3.0 *
-                       std::sqrt((e[0] - e[1]) * (e[0] - e[1]) + (e[1] - e[2]) * (e[1] - e[2]) +
-                                 (e[2] - e[0]) * (e[2] - e[0])));
+  CHECK(m.eps_q ==
+        std::sqrt(2.0) / 3.0 *
+            std::sqrt((e[0] - e[1]) * (e[0] - e[1]) + (e[1] - e[2]) * (e[1] - e[2]) + (e[2] - e[0]) * (e[2] - e[0])));
   // The strain rate tensor -sym(L) in xz is [[0, 50], [50, 1]] 1/s: principal rates
   // (1 +- sqrt(1 + 4 50^2)) / 2 and 0, so gamma_dot = eps_dot_1 - eps_dot_3 = sqrt(10001); the
   // major direction at atan(eps_dot_1 / 50) from x toward z, the stress's major on x.

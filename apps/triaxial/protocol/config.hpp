@@ -39,7 +39,16 @@ struct PrepareConfig {
 };
 
 /// The path of a test (tests.path); its name and needs are its row in protocol/paths.cpp.
-enum class ShearPath { constant_p, constant_sigma3, strain, undrained, cyclic, simple_shear, simple_shear_cv, rotation };
+enum class ShearPath {
+  constant_p,
+  constant_sigma3,
+  strain,
+  undrained,
+  cyclic,
+  simple_shear,
+  simple_shear_cv,
+  rotation
+};
 
 struct ShearConfig {
   double strain_rate = 0.0;          // 1/s, axial (axis 1) compression rate of the stress paths (0: not given)
