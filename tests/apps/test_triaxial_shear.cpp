@@ -40,6 +40,22 @@ std::string simple_shear_config() {
                   "plot = false", "plot = false\n[watch]\nwindow = 0.05\n[cell]\nshear = \"free\"");
 }
 
+// The largest |shear stress| / p of 5-row window means of a series' stress (xx yy zz xy xz yz rows),
+// from the 6th row on.
+double worst_shear(const std::vector<double>& stress) {
+  double worst = 0.0;
+  for (std::size_t k = 5; k + 5 <= stress.size() / 6; ++k) {
+    Vec3 tau = Vec3::Zero();
+    double p = 0.0;
+    for (std::size_t j = k; j < k + 5; ++j) {
+      tau += Vec3(stress[6 * j + 3], stress[6 * j + 4], stress[6 * j + 5]) / 5.0;
+      p += (stress[6 * j] + stress[6 * j + 1] + stress[6 * j + 2]) / 15.0;
+    }
+    worst = std::max(worst, tau.cwiseAbs().maxCoeff() / p);
+  }
+  return worst;
+}
+
 }  // namespace
 
 TEST_CASE(
@@ -182,17 +198,7 @@ TEST_CASE(
   CHECK(std::any_of(tilt.begin(), tilt.end(), [](double t) { return t != 0.0; }));  // the cell did shear
   // Window means of 5 rows after the first 0.5 % (the servo's settling): each shear stress / p
   // within 2 % (what the servo holds: the same relative error as p).
-  const std::size_t rows = stress.size() / 6;
-  double worst = 0.0;
-  for (std::size_t k = 5; k + 5 <= rows; ++k) {
-    Vec3 tau = Vec3::Zero();
-    double p = 0.0;
-    for (std::size_t j = k; j < k + 5; ++j) {
-      tau += Vec3(stress[6 * j + 3], stress[6 * j + 4], stress[6 * j + 5]) / 5.0;
-      p += (stress[6 * j] + stress[6 * j + 1] + stress[6 * j + 2]) / 15.0;
-    }
-    worst = std::max(worst, tau.cwiseAbs().maxCoeff() / p);
-  }
+  const double worst = worst_shear(stress);
   MESSAGE("free cell: worst 5-row mean |shear stress| / p = ", worst);
   CHECK(worst < 0.02);
   // A custom path (undrained: the volume held by axes 2 and 3) keeps a free cell's shear stresses at
@@ -204,16 +210,7 @@ TEST_CASE(
   const std::vector<double> su = dataset(dir / "u" / "u-p0_100kPa.h5", "/series/stress");
   const std::vector<double> tu = dataset(dir / "u" / "u-p0_100kPa.h5", "/series/cell_tilt");
   CHECK(std::any_of(tu.begin(), tu.end(), [](double t) { return t != 0.0; }));
-  double worst_u = 0.0;
-  for (std::size_t k = 5; k + 5 <= su.size() / 6; ++k) {
-    Vec3 tau = Vec3::Zero();
-    double p = 0.0;
-    for (std::size_t j = k; j < k + 5; ++j) {
-      tau += Vec3(su[6 * j + 3], su[6 * j + 4], su[6 * j + 5]) / 5.0;
-      p += (su[6 * j] + su[6 * j + 1] + su[6 * j + 2]) / 15.0;
-    }
-    worst_u = std::max(worst_u, tau.cwiseAbs().maxCoeff() / p);
-  }
+  const double worst_u = worst_shear(su);
   MESSAGE("free cell, undrained: worst 5-row mean |shear stress| / p = ", worst_u);
   CHECK(worst_u < 0.02);
   fs::remove_all(dir);
