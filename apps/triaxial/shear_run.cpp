@@ -128,6 +128,15 @@ class ShearRun {
       default: return -std::log(cell.length[0] / cell.length0[0]);
     }
   }
+  /// A travel as the log writes it: eps1 or gamma in per cent, the rotation's angle in degrees.
+  std::string travel_text(double v) const {
+    switch (test_.path) {
+      case ShearPath::simple_shear:
+      case ShearPath::simple_shear_cv: return "gamma = " + num(100 * v, "%.2f") + " %";
+      case ShearPath::rotation: return "turned " + num(v * 180.0 / std::numbers::pi, "%.1f") + " deg";
+      default: return "eps1 = " + num(100 * v, "%.2f") + " %";
+    }
+  }
   /// Where the test ends, for the log.
   std::string goal() const {
     switch (test_.path) {
@@ -379,15 +388,15 @@ void ShearRun::finish() {
   summary_.final_strain = m_.strain[0];
   summary_.steps = st.clock.step;
   summary_.wall = timer_.elapsed();
+  const double travelled = travel(st.cell, st.clock);
   if (!judged && test_.path != ShearPath::strain)
-    log_.line(test_.name + ": its stress path was not judged: it ended at eps1 = " + num(100 * m_.strain[0], "%.2f") +
-              " %, before the watchdog's first window (" + num(100 * h_.ramp_strain, "%g") + " % of ramp and " +
+    log_.line(test_.name + ": its stress path was not judged: it ended at " + travel_text(travelled) + ", before the watchdog's first window (" + num(100 * h_.ramp_strain, "%g") + " % of ramp and " +
               num(100 * plan_.config.watch.tolerance.window, "%g") + " %)");
   summary_.status = summary_.left_path() ? "failed" : summary_.critical ? "done (critical state)" : "done";
   log_.line(test_.name + (summary_.left_path() ? ": failed (left its stress path) at step " : ": done at step ") +
-            std::to_string(st.clock.step) +
-            ", eps1 = " + num(100 * m_.strain[0], "%.2f") + " %: peak q/p = " + num(summary_.peak_eta, "%.4f") +
-            " at eps1 = " + num(100 * summary_.peak_strain, "%.2f") + " %, final q/p = " + num(m_.inv.eta, "%.4f") +
+            std::to_string(st.clock.step) + ", " + travel_text(travelled) +
+            ": peak q/p = " + num(summary_.peak_eta, "%.4f") + " at " + travel_text(summary_.peak_strain) +
+            ", final q/p = " + num(m_.inv.eta, "%.4f") +
             ", p = " + num(m_.inv.p / 1e6, "%.4f") + " MPa, b = " + num(m_.inv.b, "%.3f") +
             ", e = " + num(m_.void_ratio, "%.4f") + ", wall " + num(summary_.wall, "%.1f") + " s; " + watch_.worst() +
             "; path error " + num(100.0 * path_watch_.worst_path(), "%.2f") + " %, b error " +
