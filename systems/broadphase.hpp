@@ -1,19 +1,22 @@
 #pragma once
-// broadphase: the neighbour (candidate pair) list over the orthorhombic periodic cell, with a
-// Verlet skin, rebuilt only when needed, and the history carried from the old list to the new.
+// broadphase: the neighbour (candidate pair) list over the periodic cell (orthorhombic or tilted,
+// components/cell.hpp), with a Verlet skin, rebuilt only when needed, and the history carried from
+// the old list to the new.
 //
-// Reads radii, ids and the cell. Writes positions (wrapped into the cell at each build, the only
+// Reads radii, ids and the cell. Writes the cell's tilts and flips (a flip at a build), positions (wrapped into the cell at each build, the only
 // place they are wrapped in a scene with contacts), the pair list (contact_pairs), the history
 // arrays (every per-contact history of the field registry) when it rebuilds, the per-particle reference
 // positions of the last build and the CSR gather index.
 //
-// Rebuild test (every step, O(n)): with reduced coordinates s = x / L, a pair's branch vector
-// changes since the last build by the particles' non-affine displacements |L (s - s_ref)| (at most
-// d_max each) plus the affine stretch of the branch itself, at most max_k |L_k/L_ref_k - 1| times
-// the cutoff. Pairs left out at the build were farther than r_i + r_j + skin, so the list stays
+// Rebuild test (every step, O(n)): with reduced coordinates s = H^-1 x, a pair's branch vector
+// changes since the last build by the particles' non-affine displacements |H (s - s_ref)| (at most
+// d_max each) plus the affine stretch of the branch itself, at most max_k |L_k/L_ref_k - 1| (a tilted
+// cell: the Frobenius norm of H H_ref^-1 - I) times the cutoff. Pairs left out at the build were farther than r_i + r_j + skin, so the list stays
 // complete while 2 d_max + stretch * (2 r_max + skin) <= skin. This also covers a deforming cell.
 //
-// Build: bins of width >= 2 r_max + skin in reduced coordinates; each particle looks at the 27
+// Build: first a flip when a tilt is past half a length (another basis of the same lattice; each old
+// image re-expressed in it, so histories carry over); bins of width >= 2 r_max + skin, measured
+// between faces, in reduced coordinates; each particle looks at the 27
 // neighbouring bins with their integer image shifts (distinct even with 1 or 2 bins per axis, so a
 // pair touching through several images gets one entry per image). Pairs are kept once, from the
 // particle with the smaller id, and sorted by (i, id_j, image) per particle i: a canonical order

@@ -1,8 +1,9 @@
 #pragma once
-// Velocity-Verlet integration of spheres in a deforming orthorhombic periodic cell, in the form of
+// Velocity-Verlet integration of spheres in a deforming periodic cell, in the form of
 // LAMMPS/LIGGGHTS nve/sphere, split into the two halves the step graph places around the forces:
 //
-//   integrate_initial: v~ += F/m dt/2, w += T/I dt/2, x += (v~ + D x) dt, L_k += D_kk L_k dt;
+//   integrate_initial: v~ += F/m dt/2, w += T/I dt/2, x += (v~ + D x) dt, L_k += D_kk L_k dt
+//                      (a shearing cell: x += (v~ + L x) dt, H += L H dt, L upper triangular);
 //   integrate_final:   v~ += F/m dt/2, w += T/I dt/2.
 //
 // Newton's law acts on the fluctuating velocity v~; positions move with the full velocity
