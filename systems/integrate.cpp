@@ -23,9 +23,9 @@ void half_kick(double half_dt, const Vec3* __restrict f, const Vec3* __restrict 
 // pass over [b, e). Each kick adds the same increment as half_kick, in the same order.
 // Exclusive: whether the CPU has PREFETCHW (engine/prefetch.hpp). This is the pass of every step
 // of World::step_until but its first; half_kick's two passes per call (the first step's kick, the
-// closing kick) go without the prefetch.
-template <bool Exclusive>
-void two_kicks_drift(double dt, const Vec3& rate, const Vec3* __restrict f, const Vec3* __restrict t,
+// closing kick) go without the prefetch. `affine(x)` is the cell's affine velocity L x (with_affine below).
+template <bool Exclusive, class Affine>
+void two_kicks_drift(double dt, const Affine& affine, const Vec3* __restrict f, const Vec3* __restrict t,
                      const double* __restrict m, const double* __restrict inv_i, Vec3* __restrict x, Vec3* __restrict v,
                      Vec3* __restrict w, std::size_t b, std::size_t e) {
   const double half_dt = 0.5 * dt;
@@ -40,29 +40,19 @@ void two_kicks_drift(double dt, const Vec3& rate, const Vec3* __restrict f, cons
     const Vec3 vk = (v[k] + dv) + dv;
     v[k] = vk;
     w[k] = (w[k] + dw) + dw;
-    x[k] += (vk + rate.cwiseProduct(x[k])) * dt;
+    x[k] += (vk + affine(x[k])) * dt;
   }
 }
 
-// The affine velocity L x of a tilted cell's upper triangular velocity gradient: diagonal rate, shear
-// (L_xy, L_xz, L_yz).
-inline Vec3 affine(const Vec3& rate, const Vec3& shear, const Vec3& x) {
-  return Vec3(rate[0] * x[0] + (shear[0] * x[1] + shear[1] * x[2]), rate[1] * x[1] + shear[2] * x[2], rate[2] * x[2]);
-}
-
-// two_kicks_drift in a shearing cell (no prefetch: the tilted cell's cost is measured apart).
-void two_kicks_drift_sheared(double dt, const Vec3& rate, const Vec3& shear, const Vec3* __restrict f,
-                             const Vec3* __restrict t, const double* __restrict m, const double* __restrict inv_i,
-                             Vec3* __restrict x, Vec3* __restrict v, Vec3* __restrict w, std::size_t b, std::size_t e) {
-  const double half_dt = 0.5 * dt;
-  for (std::size_t k = b; k < e; ++k) {
-    const Vec3 dv = f[k] * (half_dt / m[k]);
-    const Vec3 dw = t[k] * (half_dt * inv_i[k]);
-    const Vec3 vk = (v[k] + dv) + dv;
-    v[k] = vk;
-    w[k] = (w[k] + dw) + dw;
-    x[k] += (vk + affine(rate, shear, x[k])) * dt;
-  }
+// Calls fn(affine) with the cell's affine velocity x -> L x: D x for an orthorhombic cell (the
+// arithmetic it always had), H-style upper triangular L x (unreduced, components/cell.hpp) for a
+// shearing one. Each form is compiled apart.
+template <class Fn>
+void with_affine(const Vec3& rate, const Vec3& shear, Fn&& fn) {
+  if (shear.isZero(0.0))
+    fn([rate](const Vec3& x) { return Vec3(rate.cwiseProduct(x)); });
+  else
+    fn([rate, shear](const Vec3& x) { return unreduced(x, rate, shear); });
 }
 
 }  // namespace
@@ -83,9 +73,8 @@ void IntegrateInitial::run(const Model& model, State& state, Scratch& scratch, E
   // arithmetic, and to round-off in floating point.
   const Vec3 new_length = cell.length + cell.length.cwiseProduct(rate) * dt;
   // A shearing cell: H <- H + L H dt, positions x <- x + (v~ + L x) dt (the same map I + L dt).
-  const bool sheared = !cell.shear_rate.isZero(0.0);
   const Vec3 shear = cell.shear_rate;
-  if (sheared || !cell.tilt.isZero(0.0)) {
+  if (!shear.isZero(0.0) || !cell.tilt.isZero(0.0)) {
     const Vec3& l = cell.length;
     const Vec3& t = cell.tilt;
     const Vec3 lh_tilt(rate[0] * t[0] + shear[0] * l[1], rate[0] * t[1] + shear[0] * t[2] + shear[1] * l[2],
@@ -104,23 +93,20 @@ void IntegrateInitial::run(const Model& model, State& state, Scratch& scratch, E
   if (kick.pending) {  // the last step's final kick was left to this pass (integrate.hpp)
     kick.pending = false;
     const bool exclusive = cpu_has_prefetchw();
-    exec.parallel_for(position.size(), k_particle_grain, [&](std::size_t b, std::size_t e) {
-      if (sheared) {
-        two_kicks_drift_sheared(dt, rate, shear, f, t, m, inv_i, x, v, w, b, e);
-        return;
-      }
-      if (exclusive)
-        two_kicks_drift<true>(dt, rate, f, t, m, inv_i, x, v, w, b, e);
-      else
-        two_kicks_drift<false>(dt, rate, f, t, m, inv_i, x, v, w, b, e);
+    with_affine(rate, shear, [&](const auto& affine) {
+      exec.parallel_for(position.size(), k_particle_grain, [&](std::size_t b, std::size_t e) {
+        if (exclusive)
+          two_kicks_drift<true>(dt, affine, f, t, m, inv_i, x, v, w, b, e);
+        else
+          two_kicks_drift<false>(dt, affine, f, t, m, inv_i, x, v, w, b, e);
+      });
     });
   } else {
-    exec.parallel_for(position.size(), k_particle_grain, [&](std::size_t b, std::size_t e) {
-      half_kick(0.5 * dt, f, t, m, inv_i, v, w, b, e);
-      if (sheared)
-        for (std::size_t k = b; k < e; ++k) x[k] += (v[k] + affine(rate, shear, x[k])) * dt;
-      else
-        for (std::size_t k = b; k < e; ++k) x[k] += (v[k] + rate.cwiseProduct(x[k])) * dt;
+    with_affine(rate, shear, [&](const auto& affine) {
+      exec.parallel_for(position.size(), k_particle_grain, [&](std::size_t b, std::size_t e) {
+        half_kick(0.5 * dt, f, t, m, inv_i, v, w, b, e);
+        for (std::size_t k = b; k < e; ++k) x[k] += (v[k] + affine(x[k])) * dt;
+      });
     });
   }
   cell.length = new_length;
