@@ -66,6 +66,11 @@ struct Cell {
   }
 };
 
+/// The shear components in the order of tilt, shear_rate and the servo's shear settings: their
+/// names, and the (row, column) of the stress or strain tensor each is.
+inline constexpr const char* k_shear_names[3] = {"xy", "xz", "yz"};
+inline constexpr int k_shear_row[3] = {0, 0, 1}, k_shear_col[3] = {1, 2, 2};
+
 /// H n for an orthorhombic cell: the shift of a periodic image n, m.
 inline Vec3 image_offset(const Image& n, const Vec3& length) {
   return Vec3(n[0] * length[0], n[1] * length[1], n[2] * length[2]);

@@ -58,11 +58,10 @@ void validate(const Model& model, const State& state) {
                                   ": must be > 0 m");
   // A cell that shears: finite tilts and shear rates, whole flips (a cell too thin between its faces
   // for the spheres is the broadphase's to name, with the widths, at the first list build).
-  static constexpr const char* components[3] = {"xy", "xz", "yz"};
   for (int a = 0; a < 3; ++a) {
     const auto check = [&](const char* key, double v, bool ok, const char* allowed) {
       if (!ok)
-        throw std::invalid_argument(std::string("cell.") + key + "[" + components[a] + "] = " + std::to_string(v) +
+        throw std::invalid_argument(std::string("cell.") + key + "[" + k_shear_names[a] + "] = " + std::to_string(v) +
                                     ": " + allowed);
     };
     check("tilt", state.cell.tilt[a], std::isfinite(state.cell.tilt[a]), "must be finite (m)");

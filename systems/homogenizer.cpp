@@ -116,7 +116,6 @@ Measures measure(const Model& model, const State& state, Executor& exec, const M
   m.strain_rate_tensor = strain_rate_tensor(cell.velocity_gradient());
   m.gamma = Vec3::Zero() - Vec3(m.deformation(0, 1), m.deformation(0, 2), m.deformation(1, 2));  // 0 - 0 = +0
   const Principal ps = principal(m.stress), pe = principal(m.strain_tensor);
-  m.principal_stress = ps.values;
   m.stress_directions = ps.directions;
   m.principal_strain = pe.values;
   m.strain_directions = pe.directions;

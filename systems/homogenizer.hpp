@@ -80,8 +80,7 @@ struct Measures {
   Vec3 gamma = Vec3::Zero();                  // -, engineering shear strains (xy, xz, yz) = -(F_xy, F_xz, F_yz):
                                               // in simple shear (fixed lengths) the time integral of the servo's
                                               // shear_strain_rate; F continues through flips
-  Vec3 principal_stress = Vec3::Zero();       // Pa, principal values of `stress`, descending (principal())
-  Mat3 stress_directions = Mat3::Identity();  // -, columns: their unit directions
+  Mat3 stress_directions = Mat3::Identity();  // -, columns: the unit directions of inv.principal (principal())
   Vec3 principal_strain = Vec3::Zero();       // -, principal values of strain_tensor, descending
   Mat3 strain_directions = Mat3::Identity();  // -, columns: their unit directions
   double alpha = 0.0;              // deg, in (-90, 90]: sigma1's direction in the xz plane from x toward z (alpha_deg)

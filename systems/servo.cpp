@@ -21,14 +21,14 @@ void validate(const ServoSettings& servo) {
   bool any_shear_stress = false;
   if (spec.shear_settings)
     for (int k = 0; k < 3; ++k) {
-      static constexpr const char* names[3] = {"xy", "xz", "yz"};
+      const std::string names_k = k_shear_names[k];
       if (servo.shear_control[k] == AxisControl::volume)
-        throw std::invalid_argument(std::string("servo.shear_control[") + names[k] +
+        throw std::invalid_argument("servo.shear_control[" + names_k +
                                     "] = volume: a shear component is strain or stress controlled");
       if (!std::isfinite(servo.shear_strain_rate[k]))
-        fail(std::string("shear_strain_rate[") + names[k] + "]", servo.shear_strain_rate[k], "must be finite (1/s)");
+        fail("shear_strain_rate[" + names_k + "]", servo.shear_strain_rate[k], "must be finite (1/s)");
       if (!std::isfinite(servo.shear_target[k]))
-        fail(std::string("shear_target[") + names[k] + "]", servo.shear_target[k], "must be finite (Pa)");
+        fail("shear_target[" + names_k + "]", servo.shear_target[k], "must be finite (Pa)");
       any_shear_stress = any_shear_stress || servo.shear_control[k] == AxisControl::stress;
     }
   const bool diagonal_stress =
@@ -158,6 +158,17 @@ Limits limits(const ServoSettings& servo, const Vec3& rate, const std::array<Axi
     l.integral_time = std::min(l.integral_time, servo.integral_strain / fastest);
   return l;
 }
+// The PI law of the shear components held by stress: gamma_dot_ab from (S*_ab - S_ab) / scale into
+// `shear`, the integral in `integral` (null: a P law); the strain-controlled ones are left as they are.
+void shear_stress_rates(const ServoSettings& servo, const std::array<AxisControl, 3>& control, const Vec3& target,
+                        const Mat3& stress, double scale, Vec3* integral, double interval, const Limits& l,
+                        Vec3& shear) {
+  for (int k = 0; k < 3; ++k) {
+    if (control[k] != AxisControl::stress) continue;
+    const double error = (target[k] - stress(k_shear_row[k], k_shear_col[k])) / scale;
+    shear[k] = pi_rate(servo, error, integral != nullptr ? &(*integral)[k] : nullptr, interval, l.cap, l.integral_time);
+  }
+}
 }  // namespace
 
 Vec3 servo_strain_rates(const ServoSettings& servo, const Vec3& sigma, Vec3* integral, double interval, double time) {
@@ -200,14 +211,8 @@ CellRates servo_rates(const ServoSettings& servo, const Mat3& stress, Vec3* inte
     rate[k] = pi_rate(servo, error, integral != nullptr ? &(*integral)[k] : nullptr, interval, l.cap, l.integral_time);
   }
   // Shear stresses: errors relative to the path's stress scale (a shear target is often zero).
-  const double shear_scale = std::max({path_scale(servo), std::abs(sigma.mean()), 1e-300});
-  for (int k = 0; k < 3; ++k) {
-    if (servo.shear_control[k] != AxisControl::stress) continue;
-    static constexpr int row[3] = {0, 0, 1}, col[3] = {1, 2, 2};
-    const double error = (servo.shear_target[k] - stress(row[k], col[k])) / shear_scale;
-    shear[k] = pi_rate(servo, error, shear_integral != nullptr ? &(*shear_integral)[k] : nullptr, interval, l.cap,
-                       l.integral_time);
-  }
+  shear_stress_rates(servo, servo.shear_control, servo.shear_target, stress,
+                     std::max({path_scale(servo), std::abs(sigma.mean()), 1e-300}), shear_integral, interval, l, shear);
   return {rate, shear};
 }
 
@@ -236,13 +241,12 @@ Vec3 custom_strain_rates(const ServoSettings& servo, const PathTargets& targets,
   for (int k = 0; k < 3; ++k)
     if (targets.control[k] == AxisControl::strain) rate[k] = targets.value[k];
   Vec3 shear = Vec3::Zero();
-  static constexpr const char* shear_names[3] = {"xy", "xz", "yz"};
   for (int k = 0; k < 3; ++k) {
     if (targets.shear_control[k] == AxisControl::volume)
-      throw std::invalid_argument(std::string("servo.custom returned shear_control[") + shear_names[k] +
+      throw std::invalid_argument(std::string("servo.custom returned shear_control[") + k_shear_names[k] +
                                   "] = volume: a shear component is strain or stress controlled");
     if (!std::isfinite(targets.shear_value[k]))
-      throw std::invalid_argument(std::string("servo.custom returned shear_value[") + shear_names[k] +
+      throw std::invalid_argument(std::string("servo.custom returned shear_value[") + k_shear_names[k] +
                                   "] = " + std::to_string(targets.shear_value[k]) + ": must be finite");
     if (targets.shear_control[k] == AxisControl::strain) shear[k] = targets.shear_value[k];
   }
@@ -253,14 +257,8 @@ Vec3 custom_strain_rates(const ServoSettings& servo, const PathTargets& targets,
     rate[k] = pi_rate(servo, error, integral != nullptr ? &(*integral)[k] : nullptr, interval, l.cap, l.integral_time);
   }
   // Shear stresses: errors relative to the stress scale of the answer (a shear target is often zero).
-  const double shear_scale = std::max(scale, 1e-300);
-  for (int k = 0; k < 3; ++k) {
-    if (targets.shear_control[k] != AxisControl::stress) continue;
-    static constexpr int row[3] = {0, 0, 1}, col[3] = {1, 2, 2};
-    const double error = (targets.shear_value[k] - input.stress(row[k], col[k])) / shear_scale;
-    shear[k] = pi_rate(servo, error, shear_integral != nullptr ? &(*shear_integral)[k] : nullptr, interval, l.cap,
-                       l.integral_time);
-  }
+  shear_stress_rates(servo, targets.shear_control, targets.shear_value, input.stress, std::max(scale, 1e-300),
+                     shear_integral, interval, l, shear);
   if (shear_out != nullptr) *shear_out = shear;
   if (volume_axes == 0) return rate;
   // L <- L (1 + D dt) each step (integrate_initial), D = -rate: after n steps the volume is

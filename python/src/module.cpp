@@ -85,8 +85,6 @@ std::vector<std::string> control_names(const std::array<AxisControl, 3>& c) {
   return {k_controls.name(c[0]), k_controls.name(c[1]), k_controls.name(c[2])};
 }
 
-// The shear components xy, xz, yz, as the engine's messages name them (systems/servo.cpp).
-constexpr const char* k_shear_names[3] = {"xy", "xz", "yz"};
 // A shear component is strain or stress controlled (a volume constraint is the axes' alone).
 const Names<AxisControl> k_shear_controls{{{"strain", AxisControl::strain}, {"stress", AxisControl::stress}}};
 
@@ -805,7 +803,9 @@ PYBIND11_MODULE(_sandcell, m) {
                     "-ln V, V = sqrt(F F^T): the logarithmic strain tensor, compression positive")
       .def_readonly("strain_rate_tensor", &Measures::strain_rate_tensor, "-(L + L^T)/2, 1/s, compression positive")
       .def_readonly("gamma", &Measures::gamma, "Engineering shear strains (xy, xz, yz) = -(F_xy, F_xz, F_yz)")
-      .def_readonly("principal_stress", &Measures::principal_stress, "Principal stresses, Pa, descending")
+      .def_property_readonly(
+          "principal_stress", [](const Measures& m) { return m.inv.principal; },
+          "Principal stresses, Pa, descending (the invariants' s1, s2, s3)")
       .def_readonly("stress_directions", &Measures::stress_directions, "Columns: their unit directions")
       .def_readonly("principal_strain", &Measures::principal_strain, "Principal values of strain_tensor, descending")
       .def_readonly("strain_directions", &Measures::strain_directions, "Columns: their unit directions")

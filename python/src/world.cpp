@@ -23,6 +23,7 @@
 #include <exception>
 #include <stdexcept>
 #include <string>
+#include <utility>
 
 namespace sandcell::python {
 
@@ -93,19 +94,20 @@ py::dict contact_views(py::handle owner, const State& s) {
   return d;
 }
 
+// Every 3-vector of the cell (components/cell.hpp): lengths, tilts (xy, xz, yz) of H and H0, flip
+// counts of N (integers, as doubles), rates and shear rates, the servo's integrals.
 py::dict cell_views(py::handle owner, const State& s) {
+  static constexpr std::pair<const char*, Vec3 Cell::*> k_vectors[] = {{"length", &Cell::length},
+                                                                       {"length0", &Cell::length0},
+                                                                       {"rate", &Cell::rate},
+                                                                       {"servo_integral", &Cell::servo_integral},
+                                                                       {"tilt", &Cell::tilt},
+                                                                       {"tilt0", &Cell::tilt0},
+                                                                       {"flip", &Cell::flip},
+                                                                       {"shear_rate", &Cell::shear_rate},
+                                                                       {"shear_integral", &Cell::shear_integral}};
   py::dict d;
-  d["length"] = vec_view(owner, s.cell.length);
-  d["length0"] = vec_view(owner, s.cell.length0);
-  d["rate"] = vec_view(owner, s.cell.rate);
-  d["servo_integral"] = vec_view(owner, s.cell.servo_integral);
-  // The shearing cell (components/cell.hpp): tilts (xy, xz, yz) of H and H0, flip counts of N
-  // (integers, as doubles), shear rates (L_xy, L_xz, L_yz), the shear servo's integral.
-  d["tilt"] = vec_view(owner, s.cell.tilt);
-  d["tilt0"] = vec_view(owner, s.cell.tilt0);
-  d["flip"] = vec_view(owner, s.cell.flip);
-  d["shear_rate"] = vec_view(owner, s.cell.shear_rate);
-  d["shear_integral"] = vec_view(owner, s.cell.shear_integral);
+  for (const auto& [name, member] : k_vectors) d[name] = vec_view(owner, s.cell.*member);
   return d;
 }
 
@@ -149,8 +151,8 @@ struct WorldPath {
   PathTargets operator()(const PathInput& in) const {
     Hub& h = *hub;
     if (h.replaying) {
-      if (h.next >= h.tape.size()) throw std::logic_error("replay: past the " + std::to_string(h.tape.size()) +
-                                                          " recorded answers of the path");
+      if (h.next >= h.tape.size())
+        throw std::logic_error("replay: past the " + std::to_string(h.tape.size()) + " recorded answers of the path");
       return h.tape[h.next++];
     }
     PathTargets t = fn ? call(in) : inner(in);
@@ -212,8 +214,9 @@ void roll_back(PyWorld& w) {
   const std::uint64_t step = w.world->state().clock.step;  // the interrupted step's clock did not advance
   const std::string undone = "an exception interrupted step " + std::to_string(step) + ", ";
   if (!w.transactional || !w.snapshot || w.snapshot_stale) {
-    w.broken = undone + "which this World cannot undo (it has no custom path, whose answers it records); it holds "
-                        "that step half done: make a new World, e.g. from a checkpoint";
+    w.broken = undone +
+               "which this World cannot undo (it has no custom path, whose answers it records); it holds "
+               "that step half done: make a new World, e.g. from a checkpoint";
     return;
   }
   try {
@@ -292,8 +295,8 @@ void PyWorld::check(const std::string& what) const {
   if (!broken.empty()) throw std::runtime_error(what + ": this World cannot be used: " + broken);
   if (busy.empty()) return;
   if (hub->callback == std::this_thread::get_id()) {
-    hub->reentry = what + ": called from this World's own " + hub->callback_kind + " while " + busy + " runs it" +
-                   k_reentry_hint;
+    hub->reentry =
+        what + ": called from this World's own " + hub->callback_kind + " while " + busy + " runs it" + k_reentry_hint;
     throw std::runtime_error(hub->reentry);
   }
   throw std::runtime_error(what + ": this World is busy in " + busy +
@@ -453,8 +456,7 @@ void bind_world(py::module_& m) {
           "Read-only views of the particle arrays: live (they show each step's values) and valid while they exist "
           "(the arrays never move; the spatial sort reorders them in place: match rows by 'id')")
       .def_property_readonly(
-          "contacts",
-          [](const PyWorld& w) { return contact_views(py::handle(), w.state("World.contacts")); },
+          "contacts", [](const PyWorld& w) { return contact_views(py::handle(), w.state("World.contacts")); },
           "Read-only copies of the contact arrays (they move at each neighbour-list build)")
       .def_property_readonly(
           "cell", [](py::object self) { return cell_views(self, self.cast<const PyWorld&>().state("World.cell")); },
@@ -465,7 +467,8 @@ void bind_world(py::module_& m) {
           [](PyWorld& w, const py::object& v) {
             w.check("World.set_cell_rate");
             const Vec3 r = vec3("rate", v);
-            for (int k = 0; k < 3; ++k) finite("rate[" + std::to_string(k) + "]", r[k], "(1/s, D_kk, tension positive)");
+            for (int k = 0; k < 3; ++k)
+              finite("rate[" + std::to_string(k) + "]", r[k], "(1/s, D_kk, tension positive)");
             w.world->state().cell.rate = r;
             w.snapshot_stale = true;  // a change that replaying steps would not make
           },
