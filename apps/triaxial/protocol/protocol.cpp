@@ -269,40 +269,21 @@ Model shear_model(const Protocol& plan, const TestSpec& test) {
     }
     case ShearPath::strain: break;
   }
-  if (test.path == ShearPath::simple_shear || test.path == ShearPath::simple_shear_cv) {
-    // gamma_dot = shear.strain_rate, or I sqrt(p/rho) / d50 at a set inertial number (the path's answer
-    // scales the direction (0, 1, 0) by it at each update, systems/stress_paths.cpp).
-    const double rate0 = axial_rate(plan, test.p0);
-    // gamma = -F_xz grows (soil convention, docs/physics.md section 1): the servo's engineering rate
-    // -L_xz = +rate.
-    s.shear_strain_rate = Vec3(0.0, h.inertial_number > 0.0 ? 1.0 : h.strain_rate, 0.0);
-    if (h.inertial_number > 0.0) {
-      s.inertial_number = h.inertial_number;
-      s.d50 = plan.d50;
-      s.density = plan.config.material.density;
-    }
-    s.ramp_time = 2.0 * h.ramp_strain / rate0;
-    s.max_rate = h.max_rate > 0.0 ? h.max_rate : 10.0 * rate0;
-    s.max_rate_ratio = h.max_rate > 0.0 ? 0.0 : 10.0;
-    const DerivedServo derived = derived_servo(Stage::shear, test.p0, m.materials[0], plan.servo_time);
-    s.gain = h.gain > 0.0 ? h.gain : derived.gain;
-    s.integral_time = h.integral_time > 0.0 ? h.integral_time : derived.integral_time;
-    s.integral_strain = h.integral_time > 0.0 ? 0.0 : h.integral_strain > 0.0 ? h.integral_strain
-                                                  : h.inertial_number > 0.0   ? k_integral_strain
-                                                                              : 0.0;
-    s.interval = h.servo_interval;
-    return m;
-  }
-  s.control = {AxisControl::strain, AxisControl::stress, AxisControl::stress};
+  s.control = {AxisControl::strain, AxisControl::stress, AxisControl::stress};  // (a simple shear's answer decides)
   const double rate0 = axial_rate(plan, test.p0);
+  // The driven component: axis 1, or the simple shears' xz at gamma_dot = -L_xz = +rate (gamma = -F_xz
+  // grows: soil convention, docs/physics.md section 1); the rest of the servo is the same.
+  const bool simple = test.path == ShearPath::simple_shear || test.path == ShearPath::simple_shear_cv;
+  Vec3& driven = simple ? s.shear_strain_rate : s.strain_rate;
+  const Vec3 direction = simple ? Vec3(0.0, 1.0, 0.0) : Vec3(1.0, 0.0, 0.0);
   if (h.inertial_number > 0.0) {
-    // The servo scales the direction (1, 0, 0) by I sqrt(p/rho) / d50 at each update.
-    s.strain_rate = Vec3(1.0, 0.0, 0.0);
+    // The servo (a simple shear's answer) scales the direction by I sqrt(p/rho) / d50 at each update.
+    driven = direction;
     s.inertial_number = h.inertial_number;
     s.d50 = plan.d50;
     s.density = plan.config.material.density;
   } else {
-    s.strain_rate = Vec3(h.strain_rate, 0.0, 0.0);
+    driven = direction * h.strain_rate;
   }
   // A linear ramp over ramp_strain of (logarithmic) axial strain takes 2 ramp_strain / rate (at a
   // set inertial number, the rate at p = p0).
