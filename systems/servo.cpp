@@ -185,16 +185,8 @@ CellRates servo_rates(const ServoSettings& servo, const Mat3& stress, Vec3* inte
   // path's own stress scale, so a target passing through zero (constant p at eta near 3) cannot
   // divide by zero.
   const double floor = 1e-3 * path_scale(servo);
-  // At a set inertial number the strain-controlled rates follow the measured mean stress:
-  // |eps_dot| d50 sqrt(rho / p) = I, p floored like the errors' normalization.
-  const double scale =
-      servo.inertial_number > 0.0
-          ? servo.inertial_number * std::sqrt(std::max(sigma.mean(), floor) / servo.density) / servo.d50
-          : 1.0;
-  const auto ramped = [&](double set) {
-    const double full = set * scale;
-    return servo.ramp_time > 0.0 && time < servo.ramp_time ? full * (time / servo.ramp_time) : full;
-  };
+  // At a set inertial number the strain-controlled rates follow the measured mean stress (driven_rate).
+  const auto ramped = [&](double set) { return driven_rate(servo, set, sigma.mean(), time); };
   Vec3 rate = Vec3::Zero();
   for (int k = 0; k < 3; ++k) {
     if (servo.control[k] != AxisControl::strain) continue;

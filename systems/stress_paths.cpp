@@ -21,31 +21,19 @@ Vec3 constant_sigma3_targets(const ServoSettings& s, double s1) {
   return Vec3(s1, s.b * s1 + (1.0 - s.b) * s.sigma3, s.sigma3);
 }
 
-// Simple shear: xx and yy strain controlled (strain_rate, 0 for the classical test), zz by stress at
-// normal_stress (drained) or by strain (constant volume, with xx and yy at 0); the shear components
-// from the shear settings (xz at shear_strain_rate[1]).
-// The factor of a strain-controlled rate at an update: at a set inertial number I sqrt(p/rho) / d50 (p
-// the measured mean stress, floored at 1e-3 of the path's scale), times the ramp's time / ramp_time.
-double rate_factor(const ServoSettings& s, const PathInput& in) {
-  double f = 1.0;
-  if (s.inertial_number > 0.0) {
-    const double floor = 1e-3 * std::max(path_scale(s), 1e-300);
-    f = s.inertial_number * std::sqrt(std::max(in.stress.trace() / 3.0, floor) / s.density) / s.d50;
-  }
-  if (s.ramp_time > 0.0 && in.time < s.ramp_time) f *= in.time / s.ramp_time;
-  return f;
-}
-
+// Simple shear: xx and yy fixed, zz held at normal_stress (drained) or fixed (constant volume); the
+// shear components from the shear settings (xz at shear_strain_rate[1]).
 PathTargets simple_shear_answer(const ServoSettings& s, const PathInput& in) {
   PathTargets t;
-  t.control = {AxisControl::strain, AxisControl::strain,
-               s.path == StressPath::simple_shear ? AxisControl::stress : AxisControl::strain};
-  t.value = Vec3(s.strain_rate[0], s.strain_rate[1], s.path == StressPath::simple_shear ? s.normal_stress : 0.0);
-  if (s.path == StressPath::simple_shear_cv) t.value = Vec3::Zero();
+  const bool drained = s.path == StressPath::simple_shear;
+  t.control = {AxisControl::strain, AxisControl::strain, drained ? AxisControl::stress : AxisControl::strain};
+  t.value = Vec3(0.0, 0.0, drained ? s.normal_stress : 0.0);  // xx and yy fixed (and zz at constant volume)
   t.shear_control = s.shear_control;
   for (int k = 0; k < 3; ++k)
     t.shear_value[k] =
-        s.shear_control[k] == AxisControl::strain ? s.shear_strain_rate[k] * rate_factor(s, in) : s.shear_target[k];
+        s.shear_control[k] == AxisControl::strain
+            ? driven_rate(s, s.shear_strain_rate[k], in.stress.diagonal().mean(), in.time)
+            : s.shear_target[k];
   return t;
 }
 
@@ -96,6 +84,16 @@ const StressPathSpec& stress_path(StressPath path) { return k_paths[static_cast<
 const StressPathSpec* find_stress_path(std::string_view name) { return find_named(stress_paths(), name); }
 
 std::string stress_path_names() { return joined_names(stress_paths()); }
+
+double driven_rate(const ServoSettings& servo, double set, double mean_stress, double time) {
+  // |eps_dot| d50 sqrt(rho / p) = I, p floored like the errors' normalization (servo.cpp).
+  const double floor = 1e-3 * path_scale(servo);
+  const double scale = servo.inertial_number > 0.0
+                           ? servo.inertial_number * std::sqrt(std::max(mean_stress, floor) / servo.density) / servo.d50
+                           : 1.0;
+  const double full = set * scale;
+  return servo.ramp_time > 0.0 && time < servo.ramp_time ? full * (time / servo.ramp_time) : full;
+}
 
 Mat3 rotation_target(const ServoSettings& s, double time) {
   const double ramp = s.ramp_time > 0.0 ? std::min(1.0, time / s.ramp_time) : 1.0;

@@ -42,6 +42,11 @@ struct StressPathSpec {
 /// s3 = p - d (1 + b)/3, s1 = s3 + d, s2 = s3 + b d, d = q / sqrt(1 - b + b^2).
 Mat3 rotated_stress(double p, double b, double q, double alpha);
 
+/// A strain-controlled rate `set` (1/s) at a servo update: at a set inertial number times
+/// I sqrt(p/rho) / d50, p the measured mean stress floored at 1e-3 of the path's scale; during the
+/// ramp (clock time below ramp_time) times time / ramp_time.
+double driven_rate(const ServoSettings& servo, double set, double mean_stress, double time);
+
 /// The rotation path's target at clock time t (s): q rising linearly to servo.q over servo.ramp_time
 /// at alpha = rotation_start, then alpha = rotation_start + rotation_rate (t - ramp_time).
 Mat3 rotation_target(const ServoSettings& servo, double time);
