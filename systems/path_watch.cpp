@@ -73,16 +73,22 @@ double PathWatch::worst(const std::string& q) const {
   throw std::invalid_argument("PathWatch::worst: no quantity '" + q + "'");
 }
 
-// The travel the windows count, as text: the window and where the row is (axial strain, the simple
-// shears' gamma, the rotation's angle turned).
+std::string travel_text(StressPath path, double travel) {
+  if (path == StressPath::rotation) return "turned " + fmt("%.1f deg", travel * 180.0 / std::numbers::pi);
+  if (path == StressPath::simple_shear || path == StressPath::simple_shear_cv)
+    return "gamma = " + fmt("%.2f %%", 100.0 * travel);
+  return "eps1 = " + fmt("%.2f %%", 100.0 * travel);
+}
+
+// The travel the windows count, as text: the window and where the row is.
 std::pair<std::string, std::string> PathWatch::travel_text(const PathRow& row) const {
-  const bool rotation = servo_.path == StressPath::rotation;
-  const bool simple = servo_.path == StressPath::simple_shear || servo_.path == StressPath::simple_shear_cv;
-  if (rotation)
-    return {fmt("%g deg", tol_.window * 180.0 / std::numbers::pi) + " of rotation",
-            "alpha - alpha0 = " + fmt("%.1f deg", row.eps1 * 180.0 / std::numbers::pi)};
-  if (simple) return {fmt("%g %%", 100.0 * tol_.window) + " of shear strain", "gamma = " + fmt("%.2f %%", 100.0 * row.eps1)};
-  return {fmt("%g %%", 100.0 * tol_.window) + " of axial strain", "eps1 = " + fmt("%.2f %%", 100.0 * row.eps1)};
+  const StressPath path = servo_.path;
+  const std::string window =
+      path == StressPath::rotation ? fmt("%g deg", tol_.window * 180.0 / std::numbers::pi) + " of rotation"
+      : path == StressPath::simple_shear || path == StressPath::simple_shear_cv
+          ? fmt("%g %%", 100.0 * tol_.window) + " of shear strain"
+          : fmt("%g %%", 100.0 * tol_.window) + " of axial strain";
+  return {window, sandcell::travel_text(path, row.eps1)};
 }
 
 void PathWatch::fail(const char* quantity, double value, double tolerance, const PathRow& row) {

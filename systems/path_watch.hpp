@@ -74,6 +74,10 @@ struct PathFailure {
   std::string message;  // one line: quantity, value, tolerance, step, strain, and what it means
 };
 
+/// A path's travel as the logs write it: "eps1 = 1.23 %" (the axial paths), "gamma = 1.23 %" (the
+/// simple shears), "turned 12.3 deg" (the rotation, travel in radians).
+std::string travel_text(StressPath path, double travel);
+
 /// The principal axes' turn off the cell axes of one stress tensor, degrees (0 where s1 - s3 < 0.1 |p|).
 double principal_rotation_deg(const Mat3& stress);
 /// The largest |shear stress| / |p| of one stress tensor (0 where p = 0).

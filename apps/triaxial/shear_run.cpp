@@ -128,15 +128,8 @@ class ShearRun {
       default: return -std::log(cell.length[0] / cell.length0[0]);
     }
   }
-  /// A travel as the log writes it: eps1 or gamma in per cent, the rotation's angle in degrees.
-  std::string travel_text(double v) const {
-    switch (test_.path) {
-      case ShearPath::simple_shear:
-      case ShearPath::simple_shear_cv: return "gamma = " + num(100 * v, "%.2f") + " %";
-      case ShearPath::rotation: return "turned " + num(v * 180.0 / std::numbers::pi, "%.1f") + " deg";
-      default: return "eps1 = " + num(100 * v, "%.2f") + " %";
-    }
-  }
+  /// A travel as the log writes it (systems/path_watch.hpp).
+  std::string travel_text(double v) const { return sandcell::travel_text(world_->model().servo.path, v); }
   /// Where the test ends, for the log.
   std::string goal() const {
     switch (test_.path) {
