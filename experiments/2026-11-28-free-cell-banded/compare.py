@@ -5,7 +5,8 @@ the end, and over the last 5 % of axial strain (the critical state the app stopp
 strains before a failure): p, q/p and e; b from the principal stresses (what the test really
 followed) against its target; sigma3 (the smallest principal stress) over its target on the path,
 s3* = (3p - (1 + b) s1)/(2 - b) with the measured s1 and p = p0; the principal axes' turn off the
-cell axes (degrees, as the watchdog measures it) and the largest |shear stress| / p."""
+cell axes (degrees, as the watchdog measures it) and the largest |shear stress| / p; the cell's shear
+F_xz at the end (0 in a file from before the cell could shear: its cell was orthorhombic)."""
 import csv
 import math
 import os
@@ -32,6 +33,7 @@ def measures(path, b_target):
         eps1 = s["strain"][:, 0]
         stress = s["stress"][:]
         e = s["e"][:]
+        f_xz = float(s["deformation"][-1][2]) if "deformation" in s else 0.0
     last = eps1 >= eps1[-1] - 0.05
     S = np.array([[[r[0], r[3], r[4]], [r[3], r[1], r[5]], [r[4], r[5], r[2]]] for r in stress[last]])
     lam = np.linalg.eigvalsh(S)[:, ::-1]
@@ -45,12 +47,12 @@ def measures(path, b_target):
     shear = np.max(np.abs(stress[last, 3:6]), axis=1) / p
     return {"eps1_end": eps1[-1], "p_MPa": p.mean() / 1e6, "q/p": (q / p).mean(), "e": e[last].mean(),
             "b_principal": b.mean(), "s3/s3*": (lam[:, 2] / s3_target).mean(), "turn_deg": turn.mean(),
-            "max_turn_deg": turn.max(), "shear/p": shear.mean()}
+            "max_turn_deg": turn.max(), "shear/p": shear.mean(), "F_xz_end": f_xz}
 
 
 def main(fixed, free):
     out = csv.writer(sys.stdout)
-    keys = ("eps1_end", "p_MPa", "q/p", "e", "b_principal", "s3/s3*", "turn_deg", "max_turn_deg", "shear/p")
+    keys = ("eps1_end", "p_MPa", "q/p", "e", "b_principal", "s3/s3*", "turn_deg", "max_turn_deg", "shear/p", "F_xz_end")
     out.writerow(("test", "cell", "status") + keys)
     for test in TESTS:
         b_target = float(test.split("-b")[1][:4])
