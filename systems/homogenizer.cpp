@@ -124,10 +124,8 @@ Measures measure(const Model& model, const State& state, Executor& exec, const M
 
   // eps_v from the lengths in every case: -ln det F = -ln(V / V0), the trace of the strain tensor.
   // eps_q from the principal strains; for a diagonal deformation from the axes' strains as always.
-  const Vec3& e = diagonal ? m.strain : m.principal_strain;
   m.eps_v = m.strain.sum();
-  m.eps_q = std::sqrt(2.0) / 3.0 *
-            std::sqrt((e[0] - e[1]) * (e[0] - e[1]) + (e[1] - e[2]) * (e[1] - e[2]) + (e[2] - e[0]) * (e[2] - e[0]));
+  m.eps_q = deviatoric_strain(cell);
 
   double solid = 0.0;
   for (std::size_t k = 0; k < n; ++k) solid += 4.0 / 3.0 * std::numbers::pi * p.radius[k] * p.radius[k] * p.radius[k];

@@ -100,4 +100,15 @@ double noncoaxiality_deg(const Mat3& stress, const Mat3& strain_increment) {
   return std::atan2(a.cross(b).norm(), std::abs(a.dot(b))) * k_deg;
 }
 
+double deviatoric_strain(const Cell& cell) {
+  Vec3 e;
+  if (diagonal_deformation(cell)) {
+    for (int a = 0; a < 3; ++a) e[a] = -std::log(cell.length[a] / cell.length0[a]);
+  } else {
+    e = principal(cell_strain(cell)).values;
+  }
+  return std::sqrt(2.0) / 3.0 *
+         std::sqrt((e[0] - e[1]) * (e[0] - e[1]) + (e[1] - e[2]) * (e[1] - e[2]) + (e[2] - e[0]) * (e[2] - e[0]));
+}
+
 }  // namespace sandcell

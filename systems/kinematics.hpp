@@ -52,6 +52,12 @@ inline bool diagonal_deformation(const Cell& cell) {
 /// for a diagonal deformation (bitwise Measures::strain), else log_strain(cell.deformation()).
 Mat3 cell_strain(const Cell& cell);
 
+/// The cell's deviatoric strain eps_q = sqrt(2)/3 sqrt((e1-e2)^2 + (e2-e3)^2 + (e3-e1)^2), e_k the
+/// axes' strains -ln(L_k / L0_k) for a diagonal deformation, else the principal values of
+/// cell_strain. Measures::eps_q is this value bitwise; the app stops a test on it
+/// (shear.max_deviatoric_strain) and tests critical state over a window of it.
+double deviatoric_strain(const Cell& cell);
+
 /// The strain rate tensor of a velocity gradient L (tension positive), compression positive:
 /// -D = -(L + L^T)/2. Its diagonal is -L_kk exactly; for the cell's upper triangular L its
 /// off-diagonal is -L_ab / 2 (the engineering rate gamma_dot_ab = -L_ab, halved).

@@ -137,23 +137,27 @@ class ShearRun {
       case ShearPath::simple_shear:
       case ShearPath::simple_shear_cv: return "to shear strain " + num(h_.max_shear_strain);
       case ShearPath::rotation: return "through " + num(plan_.config.rotation.angle) + " deg";
-      default: return "to axial strain " + num(max_strain_);
+      default:
+        return "to axial strain " + num(max_strain_) +
+               (h_.max_deviatoric_strain > 0.0 ? " or deviatoric strain " + num(h_.max_deviatoric_strain) : "");
     }
   }
-  bool finished(std::uint64_t s, double eps1) const {
+  bool finished(std::uint64_t s, double eps1, const Cell& cell) const {
     if (cyclic_ && cyclic_->finished()) return true;  // cyclic.cycles or cyclic.max_strain reached
     switch (test_.path) {
       case ShearPath::strain: return s >= h_.steps;
       case ShearPath::simple_shear:
       case ShearPath::simple_shear_cv: return eps1 >= h_.max_shear_strain;
       case ShearPath::rotation: return eps1 >= plan_.config.rotation.angle * std::numbers::pi / 180.0;
-      default: return eps1 >= max_strain_;
+      default:
+        return eps1 >= max_strain_ ||
+               (h_.max_deviatoric_strain > 0.0 && deviatoric_strain(cell) >= h_.max_deviatoric_strain);
     }
   }
   bool progress_due() const {
     return plan_.options.progress && std::chrono::duration<double>(Clock::now() - last_progress_).count() > 1.0;
   }
-  bool event_due(std::uint64_t s, double eps1);
+  bool event_due(std::uint64_t s, double eps1, const Cell& cell);
   void check_critical(double eps1);
   void checkpoint_or_stop(std::uint64_t s);
   void report_progress(std::uint64_t s, double eps1);
@@ -279,8 +283,8 @@ CheckpointExtra ShearRun::extras() const {
 
 // Whether the loop of run() has something to do after step s: the end, a row, a snapshot, a
 // checkpoint, a stop or a progress line.
-bool ShearRun::event_due(std::uint64_t s, double eps1) {
-  return finished(s, eps1) || s % o_.series_interval == 0 ||
+bool ShearRun::event_due(std::uint64_t s, double eps1, const Cell& cell) {
+  return finished(s, eps1, cell) || s % o_.series_interval == 0 ||
          (o_.snapshot_interval > 0 && s % o_.snapshot_interval == 0) || checkpoint_due(o_, s, timer_) ||
          plan_.options.stop_due(s, step0_) || progress_due();
 }
@@ -293,12 +297,12 @@ void ShearRun::run() {
     // Steps until the body below has something to do: one call for many steps is bitwise the
     // same as one call per step, and faster (World::step_until).
     world_->step_until(std::numeric_limits<std::uint64_t>::max(), [&](Cell& cell, const sandcell::Clock& clock) {
-      return event_due(clock.step, travel(cell, clock));
+      return event_due(clock.step, travel(cell, clock), cell);
     });
     State& st = world_->state();
     const std::uint64_t s = st.clock.step;
     const double eps1 = travel(st.cell, st.clock);
-    const bool done = finished(s, eps1);
+    const bool done = finished(s, eps1, st.cell);
     if (s % o_.series_interval == 0 || done) {
       row();
       if (h_.stop_at_critical) check_critical(eps1);

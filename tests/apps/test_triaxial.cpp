@@ -139,6 +139,10 @@ TEST_CASE("triaxial: each class of bad input exits 2 naming the key, and clobber
        "shear.max_shear_strain: not given; the simple shear paths need it"},
       {"a shear strain end no test reaches", with("shear", "max_shear_strain = 1.0"),
        "shear.max_shear_strain = 1: only the simple shear paths stop at a shear strain"},
+      {"a deviatoric strain end on a path without an axial strain",
+       replaced(with("shear", "max_shear_strain = 1.0\nmax_deviatoric_strain = 0.5"),
+                "path = \"constant_p\"\nb = 0.5", "path = \"simple_shear\""),
+       "shear.max_deviatoric_strain = 0.5: only the axial stress paths"},
       {"a rotation without its rate", replaced(base, "path = \"constant_p\"", "path = \"rotation\"") +
                                           "[rotation]\neta = 0.3\nramp_time = 0.01\n",
        "rotation.eta = 0.3, rotation.rate = 0, rotation.ramp_time = 0.01: tests.path = \"rotation\" needs all three"},
@@ -370,6 +374,32 @@ TEST_CASE("triaxial: shear.ramp_strain raises the axial rate linearly: eps1 = ra
   }
   CHECK(during >= 3);
   CHECK(after >= 3);
+  fs::remove_all(dir);
+}
+
+TEST_CASE("triaxial: shear.max_deviatoric_strain ends a test at the first step whose eps_q reaches it") {
+  // b = 0.5 at constant p: eps_q ~ 1.15 eps1, so eps_q = 0.015 comes at eps1 ~ 0.013, before
+  // max_axial_strain = 0.03. The end is tested every step: the last row is at most one step's
+  // increment of eps_q past the end (bound 1.5 increments: the rate varies by far less than 50 %
+  // between the last two rows), and the row before it is below the end.
+  const fs::path dir = fresh_dir("eps_q_end");
+  std::string config = k_small;
+  config.insert(config.find("max_axial_strain"), "max_deviatoric_strain = 0.015\n");
+  write(dir / "end.toml", config);
+  const Result r = run({(dir / "end.toml").string(), "--out", dir.string()});
+  INFO(r.out, r.err);
+  REQUIRE(r.code == 0);
+  const fs::path results = dir / "p-b0.50-p0_100kPa.h5";
+  const std::vector<double> eps_q = dataset(results, "/series/eps_q");
+  const std::vector<double> step = dataset(results, "/series/step");
+  const std::vector<double> strain = dataset(results, "/series/strain");
+  const std::size_t n = eps_q.size();
+  REQUIRE(n >= 3);
+  const double per_step = (eps_q[n - 1] - eps_q[n - 2]) / (step[n - 1] - step[n - 2]);
+  CHECK(eps_q[n - 1] >= 0.015);
+  CHECK(eps_q[n - 2] < 0.015);
+  CHECK(eps_q[n - 1] - 0.015 <= 1.5 * per_step);
+  CHECK(strain[3 * (n - 1)] < 0.03);  // it was eps_q that ended the test
   fs::remove_all(dir);
 }
 

@@ -62,6 +62,7 @@ struct ShearConfig {
   double max_rate = 0.0;             // 1/s, cap on lateral rates (0: 10 x strain_rate)
   int servo_interval = 1;            // steps between servo updates
   double max_axial_strain = 0.2;     // -, stop at this axial (log) strain
+  double max_deviatoric_strain = 0.0;  // -, also stop at this eps_q (0: none); axial stress paths only
   bool stop_at_critical = false;     // also stop when critical state is detected
   double critical_window = 0.05;     // -, axial strain window over which eta, p and e must be stationary (critical.hpp)
   double critical_tolerance = 0.02;  // -, largest relative change of eta = q/p and p over the window (fitted line)

@@ -38,7 +38,8 @@ std::map<std::string, std::string> flatten(const std::string& text) {
 }
 
 bool safe_to_change(const std::string& key) {
-  return key.rfind("output.", 0) == 0 || key.rfind("tests.", 0) == 0 || key == "shear.max_axial_strain";
+  return key.rfind("output.", 0) == 0 || key.rfind("tests.", 0) == 0 || key == "shear.max_axial_strain" ||
+         key == "shear.max_deviatoric_strain";
 }
 }  // namespace
 

@@ -24,6 +24,8 @@ void parse_shear(const toml::table& root, const std::string& source, ShearConfig
   s.number("max_rate", h.max_rate, 0.0, 1e9, "must be >= 0 1/s (0: 10 x the axial rate at p0)");
   s.integer("servo_interval", h.servo_interval, 1, 1'000'000, "must be an integer in [1, 1e6] steps");
   s.number("max_axial_strain", h.max_axial_strain, 1e-9, 2.0, "must be in (0, 2] (logarithmic strain)");
+  s.number("max_deviatoric_strain", h.max_deviatoric_strain, 0.0, 2.0,
+           "must be in [0, 2] (eps_q of the logarithmic strains; 0: none, the test ends at max_axial_strain)");
   s.boolean("stop_at_critical", h.stop_at_critical);
   s.number("critical_window", h.critical_window, 1e-6, 1.0, "must be in (0, 1]");
   s.number("critical_tolerance", h.critical_tolerance, 1e-9, 1.0, "must be in (0, 1]");
@@ -287,11 +289,13 @@ void parse_rotation(const toml::table& root, const std::string& source, Rotation
 
 // The keys of the shearing cell against the campaign's paths: each must act on some test.
 void check_shearing_cell(const Config& c, const std::string& source) {
-  bool rotation = false, simple = false, servo_paths = false;
+  bool rotation = false, simple = false, servo_paths = false, axial = false;
   for (const TestSpec& t : c.tests) {
     rotation = rotation || t.path == ShearPath::rotation;
     simple = simple || t.path == ShearPath::simple_shear || t.path == ShearPath::simple_shear_cv;
     servo_paths = servo_paths || (t.path != ShearPath::strain && t.path != ShearPath::rotation);
+    axial = axial || (t.path != ShearPath::strain && t.path != ShearPath::rotation && t.path != ShearPath::simple_shear &&
+                      t.path != ShearPath::simple_shear_cv);
   }
   if (c.cell.given && !servo_paths)
     throw ConfigError(source + ": cell.shear: no test of tests.path lets the cell's shear components be fixed or free "
@@ -305,6 +309,10 @@ void check_shearing_cell(const Config& c, const std::string& source) {
   if (c.shear.max_shear_strain > 0.0 && !simple)
     throw ConfigError(source + ": shear.max_shear_strain = " + num(c.shear.max_shear_strain) +
                       ": only the simple shear paths stop at a shear strain; allowed: leave it out");
+  if (c.shear.max_deviatoric_strain > 0.0 && !axial)
+    throw ConfigError(source + ": shear.max_deviatoric_strain = " + num(c.shear.max_deviatoric_strain) +
+                      ": only the axial stress paths (constant_p, constant_sigma3, undrained, ...) stop at a deviatoric "
+                      "strain; allowed: leave it out");
   if (simple && !(c.shear.max_shear_strain > 0.0))
     throw ConfigError(source + ": shear.max_shear_strain: not given; the simple shear paths need it (e.g. 2.0)");
 }
