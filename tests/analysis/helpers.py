@@ -68,9 +68,15 @@ def caricature(p0, b, psi0=-0.05, eps_end=0.4, rows=801, rng=None):
     p = np.full(rows, p0)
     q = eta * p
     sig = p[:, None] + 2.0 / 3.0 * q[:, None] * dirs[None, :]
+    # Coordination and fabric settle with the same strain scale as the stress ratio (stationary at
+    # the end, as version 2 of the critical-state test asks): Z_mech from 6 to 4.2, the fabric's
+    # deviator along the stress's principal directions (a = 0.06 at the end).
+    z = 4.2 + 1.8 * np.exp(-eq / 0.01)
+    a = 0.06 * (1 - np.exp(-eq / 0.01))
+    fabric = np.hstack([1.0 / 3.0 + a[:, None] * 2.0 / 3.0 * dirs[None, :], np.zeros((rows, 3))])
     return {"strain": strain, "p": p, "q": q, "eta": eta, "e": e, "eps_v": ev, "eps_q": eq,
             "theta": np.full(rows, theta), "b": np.full(rows, b), "principal_stress": sig,
-            "stress": np.hstack([sig, np.zeros((rows, 3))])}
+            "stress": np.hstack([sig, np.zeros((rows, 3))]), "Z_mech": z, "fabric": fabric}
 
 
 def write_results(path, series, attrs):

@@ -1,4 +1,5 @@
-"""The critical-state test (sandcell_analysis.critical) on synthetic stress-strain records."""
+"""The critical-state test (sandcell_analysis.critical), version 2 and the kept version 1, on
+synthetic records with known trends and noise."""
 import math
 import unittest
 
@@ -8,83 +9,193 @@ from sandcell_analysis import critical
 from sandcell_analysis import m_theta
 
 
-def _tail(rng, eps1, rising_eta=False, drifting_e=False):
-    """A stress-strain record: peak then softening to a stationary tail (noise like DEM)."""
-    n = eps1.size
-    eta = 1.2 + 0.3 * np.exp(-eps1 / 0.03) * (1 - np.exp(-eps1 / 0.003))
-    if rising_eta:
-        eta = 1.0 + 2.0 * eps1  # still rising: +0.1 (5.6 %) over the last 5 %
-    eta = eta * (1 + rng.normal(0, 0.02, n))
+def ar1(rng, n, phi, sd):
+    """AR(1) noise of lag-1 correlation phi and stationary standard deviation sd."""
+    z = rng.normal(0.0, sd * math.sqrt(1 - phi ** 2), n)
+    out = np.empty(n)
+    out[0] = rng.normal(0.0, sd)
+    for k in range(1, n):
+        out[k] = phi * out[k - 1] + z[k]
+    return out
+
+
+def fabric_of(a, n):
+    """Axisymmetric fabric rows phi = diag(1/3 + 2a/3, 1/3 - a/3, 1/3 - a/3): F_a = 15/2 sqrt(2/3) a."""
+    a = np.broadcast_to(np.asarray(a, float), (n,))
+    z = np.zeros(n)
+    return np.column_stack([1 / 3 + 2 * a / 3, 1 / 3 - a / 3, 1 / 3 - a / 3, z, z, z])
+
+
+def _tail(rng, x, eta_noise=0.01, drift=None):
+    """A record against eps_q = x: peak then softening to a stationary tail, every quantity of
+    version 2 with white noise; drift = (name, change over the last 0.1 of x) adds a straight drift."""
+    n = x.size
+    eta = 1.2 + 0.3 * np.exp(-x / 0.03) * (1 - np.exp(-x / 0.003))
+    eta = eta * (1 + rng.normal(0, eta_noise, n))
     p = 5e5 * (1 + rng.normal(0, 0.005, n))
-    e = 0.75 - 0.15 * np.exp(-eps1 / 0.04) + rng.normal(0, 5e-4, n)
-    if drifting_e:
-        e = 0.6 + 0.2 * eps1 + rng.normal(0, 5e-4, n)  # +0.01 over the last 5 %
-    eps_v = np.log((1 + e[0]) / (1 + e))
-    return {"eta": eta, "p": p, "q": eta * p, "e": e, "eps_v": eps_v,
-            "b": np.zeros(n), "theta": np.zeros(n)}
+    e = 0.75 - 0.15 * np.exp(-x / 0.04) + rng.normal(0, 5e-4, n)
+    z = 4.2 + 1.5 * np.exp(-x / 0.03) + rng.normal(0, 0.01, n)
+    a = 0.1 * (1 - np.exp(-x / 0.03)) * (1 + rng.normal(0, 0.005, n))
+    s = {"eta": eta, "p": p, "e": e, "Z_mech": z}
+    if drift is not None:
+        name, change = drift
+        u = (x - x[-1]) / 0.1
+        if name == "F_a":
+            a = a + change * 0.1 * u  # F_a ~ 0.61 at a = 0.1: relative change ~ change
+        else:
+            s[name] = s[name] * (1 + change * u) if name != "e" else s[name] + change * u
+    s["q"] = s["eta"] * s["p"]
+    s["fabric"] = fabric_of(a, n)
+    s["eps_v"] = np.log((1 + e[0]) / (1 + s["e"]))
+    s["b"], s["theta"] = np.zeros(n), np.zeros(n)
+    return s
 
 
-class CriticalDetection(unittest.TestCase):
-    eps1 = np.linspace(0, 0.4, 801)
+class FabricAnisotropy(unittest.TestCase):
+    def test_identities(self):
+        # isotropic: 0; axisymmetric diag(a, c, c): 15/2 sqrt(2/3) (a - c), exact to round-off
+        self.assertAlmostEqual(float(critical.fabric_anisotropy([1 / 3, 1 / 3, 1 / 3, 0, 0, 0])), 0.0, places=14)
+        a, c = 0.45, 0.275
+        self.assertAlmostEqual(float(critical.fabric_anisotropy([a, c, c, 0, 0, 0])),
+                               7.5 * math.sqrt(2 / 3) * (a - c), places=12)
+        # off-diagonals count twice: the same tensor turned 45 deg about z has the same norm
+        R = np.array([[math.cos(0.7854), -math.sin(0.7854), 0], [math.sin(0.7854), math.cos(0.7854), 0], [0, 0, 1]])
+        T = R @ np.diag([a, 0.3, 1 - a - 0.3]) @ R.T
+        rotated = [T[0, 0], T[1, 1], T[2, 2], T[0, 1], T[0, 2], T[1, 2]]
+        self.assertAlmostEqual(float(critical.fabric_anisotropy(rotated)),
+                               float(critical.fabric_anisotropy([a, 0.3, 1 - a - 0.3, 0, 0, 0])), places=12)
+
+
+class CriticalV2(unittest.TestCase):
+    x = np.linspace(0, 0.4, 801)  # eps_q; the window 0.1 holds 201 rows
 
     def test_stationary_tail_with_noise_is_critical(self):
-        # Noise 2 % on eta, 0.5 % on p, 5e-4 on e: the slope of a line through 101 rows has a
-        # standard error ~10x below the tolerances, so the tail is detected whatever the seed.
-        s = _tail(np.random.default_rng(6), self.eps1)
-        r = critical.detect_critical(self.eps1, s)
+        # White noise 1 % on eta: the change over the window of a line through 201 rows has a
+        # standard error 0.01 x 1.2 x sqrt(12/201) / 1.2 = 0.24 %, so change + 2 SE stays near 1 %,
+        # half the 2 % tolerance (the other quantities are further inside theirs).
+        s = _tail(np.random.default_rng(6), self.x)
+        r = critical.detect_critical(self.x, s)
         self.assertTrue(r["reached"], r["reasons"])
-        self.assertAlmostEqual(r["point"]["eta"], 1.2, delta=0.01)  # mean of 101 rows, sd 2.4e-2
-        self.assertAlmostEqual(r["point"]["M"], 1.2, delta=0.01)
+        self.assertIn(r["rows"], (200, 201))  # the window's edge 0.3 is a row: round-off decides
+        self.assertEqual(set(r["checks"]), {"eta", "p", "e", "Z_mech", "F_a"})  # eps_v not tested
+        self.assertAlmostEqual(r["point"]["eta"], 1.2, delta=0.005)  # mean of 201 rows, sd 8.5e-4
         self.assertAlmostEqual(r["point"]["e"], 0.75, delta=0.001)
+        self.assertAlmostEqual(r["point"]["F_a"], 7.5 * math.sqrt(2 / 3) * 0.1, delta=0.002)
+
+    def test_each_drifting_quantity_fails_alone(self):
+        # A drift of 1.5x the tolerance in one quantity: it fails, named, and the others pass.
+        for name, change in (("eta", 0.03), ("p", 0.03), ("e", 0.0075), ("Z_mech", 0.03), ("F_a", 0.075)):
+            s = _tail(np.random.default_rng(7), self.x, drift=(name, change))
+            r = critical.detect_critical(self.x, s)
+            self.assertFalse(r["reached"], name)
+            self.assertFalse(r["checks"][name]["ok"], name)
+            self.assertEqual([k for k, c in r["checks"].items() if not c["ok"]], [name])
+            self.assertTrue(r["reasons"][0].startswith(name))
+
+    def test_unrecorded_quantity_fails(self):
+        s = _tail(np.random.default_rng(8), self.x)
+        del s["Z_mech"], s["fabric"]
+        r = critical.detect_critical(self.x, s)
+        self.assertFalse(r["reached"])
+        self.assertIn("Z_mech: not recorded in the series", r["reasons"])
+        # a tolerance of None leaves a quantity untested
+        r = critical.detect_critical(self.x, s, tol_z=None, tol_fabric=None)
+        self.assertTrue(r["reached"], r["reasons"])
+
+    def test_serial_correlation_widens_the_error_by_the_ar1_factor(self):
+        # The slope's error is the OLS error times sqrt((1 + r1)/(1 - r1)), r1 the residuals' lag-1
+        # autocorrelation: an identity, checked to round-off; r1 of AR(1) noise with phi = 0.8 over
+        # 201 rows is phi within its sampling error (sd ~ sqrt((1 - phi^2)/n) = 0.04; 3 sd).
+        rng = np.random.default_rng(9)
+        x = self.x[-201:]
+        y = 1.0 + ar1(rng, x.size, 0.8, 0.01)
+        slope, se, r1, n = critical.trend(x, y, 0.1)
+        xc = x - x.mean()
+        resid = (y - y.mean()) - slope * xc
+        plain = math.sqrt(float(resid @ resid) / (n - 2) / float(xc @ xc))
+        self.assertAlmostEqual(se, plain * math.sqrt((1 + r1) / (1 - r1)), delta=1e-12 * se)
+        self.assertAlmostEqual(r1, 0.8, delta=0.12)
+        # white noise: r1 clipped at 0 from below, the factor >= 1
+        slope, se2, r1w, n = critical.trend(x, 1.0 + rng.normal(0, 0.01, x.size), 0.1)
+        self.assertGreaterEqual(r1w, 0.0)
+        self.assertLessEqual(r1w, 0.99)
+
+    def test_first_passage_by_noise_is_refused(self):
+        # eta drifts by 1.5 % over the window (inside the 2 % tolerance) under AR(1) noise (phi 0.95,
+        # sd 2 %): the change alone (version 1's test) passes, but its error (~1 %: AR(1) cuts the
+        # 201 rows to ~5 effective ones) puts change + 2 SE beyond 2 %: version 2 does not accept it.
+        rng = np.random.default_rng(10)
+        s = _tail(rng, self.x)
+        u = (self.x - self.x[-1]) / 0.1
+        s["eta"] = 1.2 * (1 + 0.015 * u + ar1(rng, self.x.size, 0.95, 0.02))
+        s["q"] = s["eta"] * s["p"]
+        c = critical.detect_critical(self.x, s)["checks"]["eta"]
+        self.assertGreater(c["bound"], 0.02)
+        self.assertGreater(c["r1"], 0.8)
+        self.assertTrue(c["ok"] is False)
+
+    def test_window_is_in_eps_q(self):
+        # Rows every 0.001 of eps_q to 0.35: the window [0.25, 0.35] holds 101 rows whatever eps_1
+        x = np.linspace(0, 0.35, 351)
+        r = critical.detect_critical(x, _tail(np.random.default_rng(11), x))
         self.assertEqual(r["rows"], 101)
+        self.assertAlmostEqual(r["window"][0], 0.25, places=12)
+        self.assertEqual(r["variable"], "eps_q")
 
-    def test_rising_eta_is_not_critical(self):
-        s = _tail(np.random.default_rng(7), self.eps1, rising_eta=True)
-        r = critical.detect_critical(self.eps1, s)
+    def test_short_test_is_not_critical(self):
+        x = np.linspace(0, 0.28, 561)  # < window + pre-strain = 0.3
+        r = critical.detect_critical(x, _tail(np.random.default_rng(12), x))
         self.assertFalse(r["reached"])
-        self.assertFalse(r["checks"]["eta"]["ok"])
-        self.assertTrue(any(x.startswith("eta") for x in r["reasons"]))
-
-    def test_drifting_void_ratio_is_not_critical(self):
-        s = _tail(np.random.default_rng(8), self.eps1, drifting_e=True)
-        r = critical.detect_critical(self.eps1, s)
-        self.assertFalse(r["reached"])
-        self.assertFalse(r["checks"]["e"]["ok"])
-        self.assertTrue(r["checks"]["eta"]["ok"])
+        self.assertIn("window + pre-strain", r["reasons"][0])
 
     def test_b_and_theta_are_those_of_the_mean_stress_not_the_mean_of_sorted_rows(self):
         # Lateral stresses fluctuating +-3 % independently about a state of exact b (0, 0.5, 1):
         # the rows' b, from sorted principal stresses, is biased away from 0 and 1 (s2 - s3 or
         # s1 - s2 counted positive whatever its sign), while the window-mean tensor's b is the
-        # state's to the noise of a mean of 101 rows (sd ~ 0.03 x sigma / (s1 - s3) / 10 < 0.005).
-        rng = np.random.default_rng(11)
-        n = self.eps1.size
+        # state's to the noise of a mean of 201 rows (sd ~ 0.03 x sigma / (s1 - s3) / 14 < 0.005).
+        rng = np.random.default_rng(13)
+        n = self.x.size
         for b in (0.0, 0.5, 1.0):
-            s = _tail(rng, self.eps1)
+            s = _tail(rng, self.x)
             p = s["p"]
-            s1, s3 = 1.6 * p, 0.7 * p  # q/p = 0.9 at b = 0: shear stresses zero, axes principal
+            s1, s3 = 1.6 * p, 0.7 * p
             s2 = s3 + b * (s1 - s3)
-            lat2 = s2 * (1 + rng.normal(0, 0.03, n))
-            lat3 = s3 * (1 + rng.normal(0, 0.03, n))
-            ax = s1 * (1 + rng.normal(0, 0.03, n))
-            stress = np.column_stack([ax, lat2, lat3, np.zeros(n), np.zeros(n), np.zeros(n)])
+            stress = np.column_stack([s1 * (1 + rng.normal(0, 0.03, n)), s2 * (1 + rng.normal(0, 0.03, n)),
+                                      s3 * (1 + rng.normal(0, 0.03, n)), np.zeros(n), np.zeros(n), np.zeros(n)])
             ps = np.sort(stress[:, :3], axis=1)[:, ::-1]
             s["b"] = (ps[:, 1] - ps[:, 2]) / (ps[:, 0] - ps[:, 2])
             s["theta"] = m_theta.lode_from_b(s["b"])
             s["stress"] = stress
-            pt = critical.detect_critical(self.eps1, s)["point"]
+            pt = critical.detect_critical(self.x, s)["point"]
             self.assertAlmostEqual(pt["b"], b, delta=0.01)
             self.assertAlmostEqual(pt["theta"], float(m_theta.lode_from_b(b)), delta=math.radians(0.6))
-            if b in (0.0, 1.0):  # the rows' mean is off by more than the tolerance above
+            if b in (0.0, 1.0):
                 self.assertGreater(abs(pt["b_rows"] - b), 0.02)
-        # Without a stress tensor, the rows' mean is all there is.
-        s = _tail(np.random.default_rng(12), self.eps1)
-        pt = critical.detect_critical(self.eps1, s)["point"]
-        self.assertEqual(pt["b"], 0.0)
-        self.assertNotIn("b_rows", pt)
 
-    def test_short_test_is_not_critical(self):
-        eps1 = np.linspace(0, 0.08, 161)
-        r = critical.detect_critical(eps1, _tail(np.random.default_rng(9), eps1))
-        self.assertFalse(r["reached"])
-        self.assertIn("window + pre-strain", r["reasons"][0])
+
+class FirstPassage(unittest.TestCase):
+    def test_version_1_stops_earlier_than_version_2_on_a_settling_test(self):
+        # eta settles exponentially (scale 0.05 of strain) under AR(1) noise: version 1 (change
+        # alone over 5 % of eps_1, from 10 %) passes on the first window whose line happens to be
+        # flat; version 2 (change + 2 SE over 0.1 of eps_q, from 0.3) needs the tail. eps_1 = eps_q
+        # here (a b = 0 test at constant volume, for the sake of one axis).
+        rng = np.random.default_rng(14)
+        x = np.linspace(0, 0.6, 1201)
+        s = _tail(rng, x)
+        s["eta"] = 1.2 * (1 + 0.3 * np.exp(-x / 0.05) + ar1(rng, x.size, 0.9, 0.01))
+        s["q"] = s["eta"] * s["p"]
+        n1 = critical.first_critical_row(x, s, criterion="v1")
+        n2 = critical.first_critical_row(x, s)
+        self.assertIsNotNone(n1)
+        self.assertIsNotNone(n2)
+        self.assertGreaterEqual(x[n2 - 1], 0.3)  # never before window + pre-strain
+        self.assertLess(n1, n2)
+        # the prefix version 2 stops at is critical, the row before is not
+        self.assertTrue(critical.detect_critical(x[:n2], {k: v[:n2] for k, v in s.items()})["reached"])
+        self.assertFalse(critical.detect_critical(x[:n2 - 1], {k: v[:n2 - 1] for k, v in s.items()})["reached"])
+
+    def test_app_criterion_is_version_2(self):
+        self.assertEqual(critical.APP_CRITERION, critical.V2_DEFAULTS)
+        self.assertEqual((critical.APP_CRITERION["window"], critical.APP_CRITERION["pre_strain"]), (0.1, 0.2))
+        with self.assertRaises(ValueError):
+            critical.first_critical_row(np.zeros(3), {}, criterion="v3")

@@ -144,7 +144,7 @@ def read_test(path):
                 raise InputError(f"cannot read {path}: /series lacks {', '.join(missing)}")
             if strain.ndim != 2 or strain.shape[1] < 3:
                 raise InputError(f"cannot read {path}: /series/strain is not [n, 3]")
-            for name in ("eta", "theta", "b", "eps_q", "time", "stress"):
+            for name in ("eta", "theta", "b", "eps_q", "time", "stress", "Z_mech", "fabric"):
                 cols[name] = get(name)
             ps = get("principal_stress")
             attrs = {k: attr(f, k) for k in ("job", "path", "b", "p0")}
@@ -153,8 +153,9 @@ def read_test(path):
     except Exception as exc:
         why = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
         raise InputError(f"cannot read {path}: {why}") from None
-    if cols["stress"] is not None and (cols["stress"].ndim != 2 or cols["stress"].shape[1] != 6):
-        cols["stress"] = None
+    for name in ("stress", "fabric"):
+        if cols[name] is not None and (cols[name].ndim != 2 or cols[name].shape[1] != 6):
+            cols[name] = None
     lengths = [strain.shape[0]] + [v.shape[0] for v in cols.values() if v is not None]
     if ps is not None and ps.ndim == 2 and ps.shape[1] == 3:
         lengths.append(ps.shape[0])
