@@ -70,7 +70,7 @@ class Surfaces(unittest.TestCase):
     def test_aic_picks_the_generating_surface(self):
         # 3 points at each of 5 Lode angles from a Matsuoka-Nakai (then a Lade-Duncan) cone of
         # phi_c = 24 deg, noise 0.005 on q/p (half the DEM scatter): the generating surface has the
-        # smallest AICc (seeded; the others' misfit is 2-4x the noise at b = 0.25-1).
+        # smallest AICc (seeded).
         import math
         rng = np.random.default_rng(31)
         theta = np.repeat(m_theta.lode_from_b(np.array([0.0, 0.25, 0.5, 0.75, 1.0])), 3)

@@ -319,7 +319,9 @@ def analyze_tests(tests, opt):
         if st is not None and np.asarray(st).shape == (t["rows"], 6) and np.isfinite(st).all():
             others.update({f"s{k}": st[:, k] for k in range(6)})
         dil = plastic_dilatancy(t["eps_v"], t["eps_q"], t["p"], t["q"], others=others, rel=opt.smooth,
-                                h_min=opt.smooth_min, min_deq=opt.min_deq)
+                                h_min=opt.smooth_min, min_deq=opt.min_deq,
+                                moduli={"K": NAN, "G": NAN, "rows": 0, "note": "--moduli none"}
+                                if opt.moduli == "none" else None)
         if "s0" in dil:
             dil["theta_rows"] = dil["theta"]
             dil["b"] = b_of_stress(np.column_stack([dil.pop(f"s{k}") for k in range(6)]))
@@ -969,7 +971,7 @@ def build_summary(tests, res, opt, files, skipped):
         })
     opts = {k: getattr(opt, k) for k in ("window", "pre_strain", "min_points", "tol_eta", "tol_p",
                                          "tol_e", "tol_z", "tol_fabric", "tol_epsv", "all", "fix_xi",
-                                         "smooth", "smooth_min", "min_strain", "min_deq", "dilatancy_path",
+                                         "smooth", "smooth_min", "min_strain", "min_deq", "moduli", "dilatancy_path",
                                          "targets", "title")}
     paths = []
     for t in tests + res.get("excluded", []):
@@ -1059,6 +1061,9 @@ def parse_args(argv):
     g.add_argument("--min-strain", type=_nonneg, default=0.0, metavar="S",
                    help="use points from this eps_q on (default 0: no cut, the elastic start is left out "
                    "by --min-deq)")
+    g.add_argument("--moduli", choices=("initial", "none"), default="initial",
+                   help="the elastic parts removed from the strain increments: each test's initial moduli "
+                   "(default), or none (total increments: for records without an elastic part)")
     g.add_argument("--min-deq", type=_nonneg, default=0.5, metavar="R",
                    help="use points with d eps_q^p / d eps_q >= R (default 0.5)")
     g.add_argument("--targets", default="", metavar="KEYS",
