@@ -846,7 +846,7 @@ def write_report(path, tests, res, opt, files, skipped):
     add(f"\nVerdict: **{cv['verdict']}** ({cv['criterion']}).\n")
     if gf["note"]:
         add(f"g-dependent form on `{gf['path']}`: {gf['note']}\n")
-    add("MSE of d per (path, b) with the model of path "
+    add("MSE of d per (path, b) (the study's Table 3) with the model of path "
         f"`{ld['path']}` (alpha = {_pm(gf['params']['alpha'], gf['stderr']['alpha'])}, beta = "
         f"{_pm(gf['params']['beta'], gf['stderr']['beta'])}):\n")
     add("| path | b | tests | points | MSE Li 3D | MSE g-dependent |")
