@@ -21,22 +21,26 @@ Options (defaults)
   --out DIR          output folder (default: <DIR>/analysis for a single directory argument,
                      else ./analysis)
   --title TEXT       report and figure title ("sandcell critical-state analysis")
-  --window W         critical-state window, axial strain at the end of each test (0.05)
-  --pre-strain S     axial strain the test must have run before that window (0.05): a test ending
-                     below W + S is never called critical (the peak and the softening come first)
+  --window W         critical-state window, deviatoric strain eps_q at the end of each test (0.1)
+  --pre-strain S     eps_q the test must have run before that window (0.2): a test ending below
+                     W + S is never called critical
   --min-points N     rows the window must hold (10)
-  --tol-eta T        largest relative change of eta over the window (0.02)
-  --tol-p T          largest relative change of p over the window (0.02)
-  --tol-e T          largest absolute change of the void ratio over the window (0.005)
-  --tol-epsv T       largest absolute change of eps_v over the window (0.005)
+  --tol-eta, --tol-p, --tol-z, --tol-fabric T   relative change + 2 SE over the window of eta, p,
+                     Z_mech and the fabric anisotropy F_a (0.02, 0.02, 0.02, 0.05)
+  --tol-e T          absolute change + 2 SE of the void ratio (0.005)
+  --tol-epsv T       also test eps_v (absolute; default: untested, e bounds it)
   --all              fit the CSL and M(theta) with the end-window points of every test, also those
                      that did not reach the critical state (marked in tables and figures)
   --fix-xi X         fit the CSL with xi fixed at X
-  --smooth W         smoothing width for the dilatancy, axial strain (0.02)
-  --min-strain S     dilatancy data start at eps_1 >= S (0.01: the elastic start is left out)
-  --min-deq R        dilatancy data need d eps_q / d eps_1 >= R (0.1)
-  --dilatancy-path P path whose b = 0 tests give d0, m and whose b > 0 tests give alpha, beta
+  --smooth R         dilatancy smoothing: local quadratics in eps_q over +-R eps_q (0.25)
+  --smooth-min H     the smallest half-width of that window (2e-4)
+  --min-strain S     dilatancy data start at eps_q >= S (0: no cut)
+  --min-deq R        dilatancy data need d eps_q^p / d eps_q >= R (0.5): the elastic start is left out
+  --moduli M         initial (each test's initial moduli remove the elastic strains) or none
+  --dilatancy-path P path whose b = 0 tests give d0, m for the report's Li-Dafalias fit and Table 3
                      (default: constant_p if it has b = 0 tests, else constant_sigma3)
+  --targets KEYS     verdicts that were calibration targets (e_gamma, lambda, xi, csl_curve, R, phi_c,
+                     phi_e, d0, m): shown as targets, not reproductions
   --localization DIR the <test>-localization.csv of `triaxial localization --whole`: the table of
                      paths says which tests are banded (else "not judged")
 
@@ -46,21 +50,18 @@ Stress paths: every test is judged by the app's watchdog rules (path_check.py, w
   paths: status, largest errors, turn of the axes, critical, banded) and summary.json (excluded,
   path_checks, warnings).
 
-Critical state (per test)
-  Over the last W of eps_1, straight lines are fitted to eta, p, e and eps_v against eps_1; the
-  change over the window predicted by each line (slope x W) must be below the tolerance: eta and p
-  2 % of their window mean, e and eps_v 0.005. Why these: the stress ratio of a few-thousand-sphere
-  DEM sample fluctuates by several per cent, and a line through ~100 rows averages that out, so a
-  2 % trend is a real drift; 2 % of M is about 0.5 degree of friction angle, well inside the
-  study's scatter. e and eps_v: the study's CSL spans about 0.03 in e over 0.5-16 MPa, so e_c must
-  be stationary to a fraction of that (0.005 ~ 1/6); eps_v is tested too because it is measured
-  directly (e also carries the solid-volume bookkeeping) and de = -(1+e) d eps_v. Besides, the
-  window must be covered: at least --min-points rows spanning 90 % of W, and the test must have
-  reached W + --pre-strain. The critical point is the window mean of p, q, eta, e and eps_v;
-  M = mean q / mean p; b and theta are those of the window-mean stress tensor (the mean of the
-  rows' b, from sorted principal stresses, is biased away from 0 and 1 by the fluctuations).
+Critical state (per test; critical.py, version 2): found after the fact on the whole test, never by
+  first passage. Over the last W of eps_q, least-squares lines through eta, p, e, Z_mech and F_a
+  (F_a = sqrt(F':F'), F' = 15/2 dev(fabric)); each quantity's change over the window plus twice its
+  standard error (OLS x sqrt((1 + r1)/(1 - r1)), r1 the residuals' lag-1 autocorrelation: serially
+  correlated rows) must be within its tolerance. The window must hold >= --min-points rows over 90 %
+  of W and the test must have reached W + --pre-strain. The critical point: the window means; e_c
+  is its void ratio, M = mean q / mean p, b and theta of the window-mean stress tensor. The
+  first-passage test of the 2026-11-28 campaigns (version 1: 5 % of eps_1, the change alone) is
+  applied to the same rows (the tests table's v1 column) and, where a test is critical, replayed to
+  measure the early stop's bias.
 
-CSL: e_c = e_Gamma - lambda (p_c/p_a)^xi (Li & Wang 1998), p_a = 101.325 kPa, fitted by nonlinear
+CSL: e_CSL(p) = e_Gamma - lambda (p/p_a)^xi (Li & Wang 1998) through the critical points (p_c, e_c), p_a = 101.325 kPa, fitted by nonlinear
   least squares (the exact optimum over xi by variable projection, then scipy curve_fit from it for
   the covariance). Needs >= 3 distinct p (10 % apart) and >= 4 points; with 2 distinct p (or 3
   points) xi is fixed at 1 (fallback, marked); with 1 it is not fitted. Standard errors from the
@@ -68,18 +69,25 @@ CSL: e_c = e_Gamma - lambda (p_c/p_a)^xi (Li & Wang 1998), p_a = 101.325 kPa, fi
 M(theta) = M_c g(theta), g = 2K/((1+K) - (1-K) cos 3theta) (K = M_e/M_c, bounds 0.5..1; a convex
   surface needs K >= 7/9), fitted to q_c/p_c and theta_c. sin phi_c = 3M_c/(6+M_c),
   sin phi_e = 3M_e/(6-M_e).
-Dilatancy d = d eps_v / d eps_q (compression positive: d < 0 is dilation). Total strain increments
-  are used: on constant-p paths the elastic volumetric increment vanishes (p constant), so the
-  total increment is a fair proxy of the plastic one; on other paths it is an approximation.
-  Derivatives: Savitzky-Golay (2nd-order polynomial, first derivative) of eps_v, eps_q and eps_1
-  against the row index over a window of --smooth axial strain (rows are written at a constant
-  axial strain rate), d = (d eps_v/dk)/(d eps_q/dk); eta, p, e and theta are smoothed with the
-  same filter; psi = e - e_c(p) with the fitted CSL (the study's CSL if none could be fitted,
-  marked). Points with eps_1 < --min-strain or d eps_q/d eps_1 < --min-deq are dropped.
-  Li & Dafalias (2000): d = d0/M (M exp(m psi) - eta), fitted on the b = 0 tests (M = M_c).
+Dilatancy d = d eps_v^p / d eps_q^p (compression positive: d < 0 is dilation), the elastic parts
+  removed: eps_v^p = eps_v - (p - p0)/K, eps_q^p = eps_q - (q - q0)/(3G), K and G each test's initial
+  tangent moduli (dilatancy.elastic_moduli; K not measured, and dp/K taken as 0, where p is held).
+  Derivatives from local quadratics in eps_q over +-max(H, R eps_q) (a constant width in log strain:
+  the pre-peak branch and the phase transformation are kept). psi and M from each (path, b) group's
+  own CSL (e_Gamma, lambda fitted; xi the pooled fit's) and mean q_c/p_c (the groups' end windows,
+  marked, where their critical points span < 2 distinct p).
+  m: from each test's phase transformation (d = 0; else its peak with eta* = eta - d/s), ln(eta*/M)
+  = c + m psi with c free, 95 % profile-likelihood interval; "not identifiable" unless >= 4 states
+  and the interval inside [-20, 60] and narrower than 4.57.
+  Li & Dafalias (2000): d = d0/M (M exp(m psi) - eta), fitted on the b = 0 tests (as the study did).
   3D, Li's form: d = d0/M_c (M_c g(theta) exp(m psi) - eta), d0 and m from b = 0.
   3D, g-dependent: d0(theta) = d0 g^-alpha, m(theta) = m g^beta (the study's exact expression is
-  not available), alpha and beta fitted on the b > 0 tests of the same path.
+  not available), alpha and beta fitted on the b > 0 tests of a path; judged by cross-validation:
+  fitted on constant p it predicts constant sigma3 and the reverse.
+  The study's Fig 10(e): slope and intercept of d = a + s eta over each test's initial branch (to
+  its largest dilation), by Spearman rho with b.
+M(theta) surfaces: g(theta), Matsuoka-Nakai, Lade-Duncan and Mohr-Coulomb compared by AICc; the
+  friction angles also from the b = 0 and b = 1 critical points directly.
 """
 import argparse
 import datetime
