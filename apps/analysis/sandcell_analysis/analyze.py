@@ -61,7 +61,8 @@ Critical state (per test; critical.py, version 2): found after the fact on the w
   applied to the same rows (the tests table's v1 column) and, where a test is critical, replayed to
   measure the early stop's bias.
 
-CSL: e_CSL(p) = e_Gamma - lambda (p/p_a)^xi (Li & Wang 1998) through the critical points (p_c, e_c), p_a = 101.325 kPa, fitted by nonlinear
+CSL: e_CSL(p) = e_Gamma - lambda (p/p_a)^xi (Li & Wang 1998) through the critical points (p_c, e_c),
+  p_a = 101.325 kPa, fitted by nonlinear
   least squares (the exact optimum over xi by variable projection, then scipy curve_fit from it for
   the covariance). Needs >= 3 distinct p (10 % apart) and >= 4 points; with 2 distinct p (or 3
   points) xi is fixed at 1 (fallback, marked); with 1 it is not fitted. Standard errors from the
@@ -162,7 +163,7 @@ def _group_states(tests, csl, opt):
     for key in keys:
         ts = [t for t in tests if (t["path"], b_key(t)) == key]
         src = "critical points"
-        pts = [t for t in ts if t["used"]]
+        pts = [t for t in ts if t["critical"]["reached"]]
         p = np.array([t["critical"]["point"]["p"] for t in pts], float)
         if distinct_levels(p) < 2:
             pts, src = ts, "end windows (not proven critical)"
@@ -313,6 +314,18 @@ def analyze_tests(tests, opt):
     surfaces = compare_surfaces(cp("theta"), cp("M"))
     direct = direct_friction_angles(cp("theta"), cp("M"))
 
+    # For reference, without verdicts: the same fits through every test's end window.
+    ends = {}
+    if not opt.all:
+        ep = lambda k: np.array([t["critical"]["point"][k] for t in tests], float)  # noqa: E731
+        ends = {"csl": fit_csl(ep("p"), ep("e"), b=np.array([b_key(t) for t in tests]), xi=opt.fix_xi),
+                "m_theta": fit_m_theta(ep("theta"), ep("M")), "surfaces": compare_surfaces(ep("theta"), ep("M")),
+                "direct_friction": direct_friction_angles(ep("theta"), ep("M")), "n": len(tests)}
+        if ends["csl"]["fitted"]:
+            pp = np.geomspace(*ends["csl"]["p_range"], 50)
+            par = ends["csl"]["params"]
+            ends["csl_curve"] = float(np.max(np.abs(csl_e(pp, par["e_gamma"], par["lambda"], par["xi"])
+                                                    - csl_e(pp, STUDY["e_gamma"], STUDY["lambda"], STUDY["xi"]))))
     if csl["fitted"]:
         cpar = csl["params"]
         psi_source = "fitted CSL"
@@ -363,6 +376,16 @@ def analyze_tests(tests, opt):
             states.append((t, t["state_m"], g["M"] if g else NAN))
     m_fit = fit_m_pt([s["psi"] for _, s, _ in states], [s["eta_star"] for _, s, _ in states],
                      [M for _, _, M in states])
+    # psi and M of a group whose CSL runs through end windows not proven critical are not measured
+    # against a critical state: no verdict on m rests on them (the fit is still reported).
+    unproven = sorted({f"{g['path']}, b = {g['b']:g}" for t, _, _ in states
+                       for g in [groups.get((t["path"], b_key(t)))] if g and g["source"] != "critical points"})
+    m_fit["unproven_groups"] = unproven
+    if unproven and m_fit["verdict"] != "not identifiable":
+        m_fit["verdict_data"] = m_fit["verdict"]
+        m_fit["verdict"] = "not identifiable"
+        m_fit["note"] = (f"the interval would say: {m_fit['verdict_data']}; but psi and M of {len(unproven)} "
+                         "group(s) come from end windows not proven critical")
     m_fit["states"] = [{"test": t["name"], **s, "M": M} for t, s, M in states]
     m_fit["kinds"] = {k: sum(s["kind"] == k for _, s, _ in states)
                       for k in ("phase transformation", "peak", "peak, eta* <= 0")}
@@ -419,7 +442,7 @@ def analyze_tests(tests, opt):
             "g_form": gf, "mse": mse, "trends": trends, "verdicts": verdicts, "warnings": warn,
             "dilatancy_path": dpath, "M_c_dilatancy": Mc, "groups": list(groups.values()),
             "m_identification": m_fit, "cross_validation": cv, "surfaces": surfaces,
-            "direct_friction": direct, "early_stop": early}
+            "direct_friction": direct, "early_stop": early, "end_windows": ends}
 
 
 def early_stop_bias(tests):
@@ -610,7 +633,8 @@ def study_verdicts(csl, mth, ld, direct=None, surfaces=None, m_fit=None, opt=Non
         lo, hi = m_fit["interval"]
         add("m", "Li-Dafalias m, phase-transformation / peak states, 95 % profile-likelihood interval",
             m_fit["m"], m_fit["se"], M_STUDY, verdict,
-            f"identifiable iff >= 4 states, the interval inside [-20, 60] and narrower than {M_STUDY}; then "
+            f"identifiable iff >= 4 states, the interval inside [-20, 60] and narrower than {M_STUDY}, and psi "
+            f"from CSLs of proven critical states; then "
             f"reproduced iff it holds {M_STUDY} (interval [{_f(lo, '.3g')}, {_f(hi, '.3g')}], "
             f"psi spans {_f(m_fit['psi_span'], '.3f')})")
     return v
@@ -743,6 +767,29 @@ def write_report(path, tests, res, opt, files, skipped):
             add(f"| {r['b']:g} | {r['n']} | {_f(r['mean'], '.4f')} | {_f(r['rms'], '.4f')} |")
         add("")
 
+    ew = res.get("end_windows") or {}
+    if ew and not all(t["critical"]["reached"] for t in tests):
+        c, mt, dr, sf = ew["csl"], ew["m_theta"], ew["direct_friction"], ew["surfaces"]
+        add("### For reference: the end windows of every test (not proven critical; no verdict)\n")
+        add(f"The same fits through the last window of each of the {ew['n']} tests, critical or not (what "
+            "`--all` fits): numbers to read beside the study's, not reproductions.\n")
+        add("| quantity | end windows | study |")
+        add("|---|---|---|")
+        add(f"| CSL e_Gamma; lambda; xi | {_pm(c['params']['e_gamma'], c['stderr']['e_gamma'])}; "
+            f"{_f(c['params']['lambda'])}; {_f(c['params']['xi'], '.3g')} ({c['mode'] or 'not fitted'}) "
+            "| 0.699; 0.0002; 0.971 |")
+        add(f"| CSL: max abs(e_CSL - e_CSL,study) over the tested p | {_f(ew.get('csl_curve'), '.4f')} | 0 |")
+        add(f"| CSL R | {_f(c['R'], '.3f')} | 0.96 |")
+        add(f"| phi_c; phi_e (deg), g(theta) fit | {_f(mt['phi_c_deg'], '.2f')}; {_f(mt['phi_e_deg'], '.2f')} "
+            f"(K {_f(mt['params']['K'], '.3f')}) | 22; 22 |")
+        add(f"| phi_c; phi_e (deg), b = 0 and b = 1 directly | {_pm(dr['phi_c_deg'], dr['se_phi_c_deg'], '.2f')} "
+            f"(n {dr['n_c']}); {_pm(dr['phi_e_deg'], dr['se_phi_e_deg'], '.2f')} (n {dr['n_e']}) | 22; 22 |")
+        if sf.get("forms"):
+            order = sorted(sf["forms"].items(), key=lambda kv: kv[1]["aicc"])
+            add("| M(theta) surfaces, delta AICc | " + "; ".join(f"{k} {_f(v['delta'], '.1f')}" for k, v in order)
+                + " | |")
+        add("")
+
     add("## 3. Critical stress ratio M(theta)\n")
     add("M(theta) = M_c g(theta), g = 2K/((1+K) - (1-K) cos 3theta), K = M_e/M_c in "
         f"[{mth['K_bounds'][0]:g}, {mth['K_bounds'][1]:g}], fitted to q_c/p_c at theta_c "
@@ -810,7 +857,9 @@ def write_report(path, tests, res, opt, files, skipped):
         "constant moves c, not m: m is identified only by a span of psi). 95 % interval: the profile "
         "likelihood, SSR(m) <= SSR_min (1 + F(0.95; 1, n-2)/(n-2)). Criterion, fixed before the data: "
         f"identifiable iff >= 4 states, the interval inside [-20, 60] and narrower than {M_STUDY} (it "
-        f"can tell m = {M_STUDY} from 0); then reproduced iff it holds {M_STUDY}.\n")
+        f"can tell m = {M_STUDY} from 0); then reproduced iff it holds {M_STUDY}. psi and M measured from "
+        "end windows not proven critical carry no verdict (added after the first run on the campaigns, "
+        "where no test proved its critical state: a rule that can only withhold a verdict).\n")
     add(f"States used: {mi['n']}: {mi['kinds'].get('phase transformation', 0)} phase transformations, "
         f"{mi['kinds'].get('peak', 0)} peaks ({mi['kinds'].get('peak, eta* <= 0', 0)} more peaks left out: "
         "there d is more negative than the initial slope allows, eta* <= 0, Li's form with one d0 does "
@@ -997,6 +1046,7 @@ def build_summary(tests, res, opt, files, skipped):
         "figures": files, "definitions": DEFINITIONS, "groups": res["groups"],
         "m_identification": res["m_identification"], "surfaces": res["surfaces"],
         "direct_friction": res["direct_friction"], "early_stop": res["early_stop"],
+        "end_windows": res.get("end_windows") or {},
         "cross_validation": {"rows": res["cross_validation"]["rows"], "verdict": res["cross_validation"]["verdict"],
                              "criterion": res["cross_validation"]["criterion"],
                              "models": {k: {"M_c": m["M_c"], "K": m["K"], "d0": m["li"]["params"]["d0"],
