@@ -394,6 +394,9 @@ def analyze_tests(tests, opt):
     for pk in sorted({t["path"] for t in tests}):
         sel = [(t, s, M) for t, s, M in states if t["path"] == pk]
         r = fit_m_pt([s["psi"] for _, s, _ in sel], [s["eta_star"] for _, s, _ in sel], [M for _, _, M in sel])
+        if any(u.startswith(pk + ",") for u in unproven) and r["verdict"] != "not identifiable":
+            r["note"] = f"psi from end windows (the interval would say: {r['verdict']})"
+            r["verdict"] = "not identifiable"
         m_fit["by_path"][pk] = {k: r[k] for k in ("n", "m", "se", "interval", "psi_span", "verdict", "note")}
 
     # Li & Dafalias (d0, m) on the b = 0 tests of one path, as the study fitted them (for reference).
