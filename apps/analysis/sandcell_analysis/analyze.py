@@ -406,6 +406,12 @@ def analyze_tests(tests, opt):
         dpath = next((pk for pk in ("constant_p", "constant_sigma3")
                       if any(t["path"] == pk and b_key(t) == 0 for t in tests)), None)
     cv = cross_validate_3d(tests, groups)
+    # Every dilatancy verdict that reads psi needs CSLs of proven critical states (as m above).
+    psi_unproven = any(g["source"] != "critical points" for g in groups.values())
+    if psi_unproven and cv["verdict"] != "not testable":
+        cv["verdict_data"], cv["verdict"] = cv["verdict"], "not testable"
+        cv["note"] = (f"the MSEs would say: {cv['verdict_data']}; but psi comes from end windows not proven "
+                      "critical")
     model = cv["models"].get(dpath) if dpath else None
     if model is None:
         model = _path_model(tests, dpath, groups) if dpath else None
@@ -440,7 +446,7 @@ def analyze_tests(tests, opt):
             mse.append(row)
 
     trends = evaluate_trends(tests, csl, mse, dpath, opt, cv)
-    verdicts = study_verdicts(csl, mth, ld, direct, surfaces, m_fit, opt)
+    verdicts = study_verdicts(csl, mth, ld, direct, surfaces, m_fit, opt, psi_unproven)
     return {"csl": csl, "m_theta": mth, "psi_source": psi_source, "li_dafalias": ld,
             "g_form": gf, "mse": mse, "trends": trends, "verdicts": verdicts, "warnings": warn,
             "dilatancy_path": dpath, "M_c_dilatancy": Mc, "groups": list(groups.values()),
@@ -558,7 +564,7 @@ def _role(key, opt):
     return "calibration target" if key in (getattr(opt, "targets", None) or ()) else "prediction"
 
 
-def study_verdicts(csl, mth, ld, direct=None, surfaces=None, m_fit=None, opt=None):
+def study_verdicts(csl, mth, ld, direct=None, surfaces=None, m_fit=None, opt=None, psi_unproven=False):
     """Every published constant against sandcell's, by a criterion fixed before the data; each row
     says whether it was a calibration target (--targets) or a prediction."""
     v = []
@@ -627,9 +633,10 @@ def study_verdicts(csl, mth, ld, direct=None, surfaces=None, m_fit=None, opt=Non
             verdict, f"smallest AICc preferred when the next is >= {CRIT['aic_margin']:g} above it")
     for k in ("d0", "m"):
         value, se = ld["params"][k], ld["stderr"][k]
-        add(k if k == "d0" else "m_ld", f"Li-Dafalias {k} (b = 0, least squares on d)", value, se, STUDY[k],
-            compare(value, se, STUDY[k], CRIT["dil_rel"]),
-            f"within 2 SE or {100 * CRIT['dil_rel']:g} % of the study's (not testable if 2 SE > the study's value)")
+        verdict = "not testable" if psi_unproven else compare(value, se, STUDY[k], CRIT["dil_rel"])
+        add(k if k == "d0" else "m_ld", f"Li-Dafalias {k} (b = 0, least squares on d)", value, se, STUDY[k], verdict,
+            f"within 2 SE or {100 * CRIT['dil_rel']:g} % of the study's (not testable if 2 SE > the study's value, "
+            "or psi from end windows not proven critical)")
     if m_fit is not None:
         verdict = {"consistent with the study": "reproduced", "not the study's": "not reproduced"}.get(
             m_fit["verdict"], "not identifiable")
@@ -903,7 +910,8 @@ def write_report(path, tests, res, opt, files, skipped):
         o, i = r["out_of_path"], r["in_path"]
         add(f"| {r['fitted_on']} | {r['predicts']} | {o['n']} | {_f(o['mse_li3d'])} | {_f(o['mse_g'])} "
             f"| {_f(i['aic_li3d'], '.1f')} | {_f(i['aic_g'], '.1f')} |")
-    add(f"\nVerdict: **{cv['verdict']}** ({cv['criterion']}).\n")
+    add(f"\nVerdict: **{cv['verdict']}** ({cv['criterion']})" + (f": {cv['note']}" if cv.get("note") else "")
+        + ".\n")
     if gf["note"]:
         add(f"g-dependent form on `{gf['path']}`: {gf['note']}\n")
     add("MSE of d per (path, b) (the study's Table 3) with the model of path "
@@ -1051,6 +1059,7 @@ def build_summary(tests, res, opt, files, skipped):
         "direct_friction": res["direct_friction"], "early_stop": res["early_stop"],
         "end_windows": res.get("end_windows") or {},
         "cross_validation": {"rows": res["cross_validation"]["rows"], "verdict": res["cross_validation"]["verdict"],
+                             "note": res["cross_validation"].get("note", ""),
                              "criterion": res["cross_validation"]["criterion"],
                              "models": {k: {"M_c": m["M_c"], "K": m["K"], "d0": m["li"]["params"]["d0"],
                                             "m": m["li"]["params"]["m"], "alpha": m["g"]["params"]["alpha"],
