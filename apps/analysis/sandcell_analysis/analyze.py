@@ -848,7 +848,8 @@ def write_report(path, tests, res, opt, files, skipped):
         f"and the phase transformation are kept); points where d eps_q^p/d eps_q < {opt.min_deq:g} (the "
         "elastic start) are dropped"
         + (f", and eps_q < {opt.min_strain:g}" if opt.min_strain > 0 else ", no strain cut")
-        + ". psi and M from each (path, b) group's own CSL (e_Gamma, lambda; xi the pooled fit's) and "
+        + ". psi and M from each (path, b) group's own CSL (e_Gamma, lambda; xi the pooled fit's, else the study's) "
+        "and "
         "mean q_c/p_c:\n")
     add("| path | b | points | CSL e_Gamma | lambda | xi | M | initial slope (median) | note |")
     add("|---|---|---|---|---|---|---|---|---|")

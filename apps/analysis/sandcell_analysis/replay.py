@@ -81,9 +81,9 @@ def report(path, r):
         pt = r["at_first"]["point"]
         step, wall = r["step"][n - 1], r["wall"][n - 1]
         step = f"{int(step)}" if np.isfinite(step) else "?"  # files without /series/step or wall_time
-        var = "eps_q" if r["criterion"] == "v2" else "eps1"
-        lines.append(f"critical ({r['criterion']}) at row {n}: eps1 = {100 * eps1[n - 1]:.2f} %, {var} = "
-                     f"{100 * x[n - 1]:.2f} %, step {step}, wall {wall:.0f} s; changes over the window: "
+        at = f", eps_q = {100 * x[n - 1]:.2f} %" if r["criterion"] == "v2" else ""
+        lines.append(f"critical ({r['criterion']}) at row {n}: eps1 = {100 * eps1[n - 1]:.2f} %{at}, "
+                     f"step {step}, wall {wall:.0f} s; changes over the window: "
                      f"{_changes(r['at_first'])}; window means: p {pt['p'] / 1e6:.4f} MPa, M {pt['M']:.4f}, "
                      f"e {pt['e']:.4f}")
     if r["covered"]:
