@@ -64,9 +64,11 @@ struct ShearConfig {
   double max_axial_strain = 0.2;     // -, stop at this axial (log) strain
   double max_deviatoric_strain = 0.0;  // -, also stop at this eps_q (0: none); axial stress paths only
   bool stop_at_critical = false;     // also stop when critical state is detected
-  double critical_window = 0.05;     // -, axial strain window over which eta, p and e must be stationary (critical.hpp)
-  double critical_tolerance = 0.02;  // -, largest relative change of eta = q/p and p over the window (fitted line)
-  double critical_tolerance_e = 0.005;  // -, largest change of e over the window (fitted line)
+  double critical_window = 0.1;      // -, deviatoric strain eps_q window over which eta, p, e, Z_mech and the fabric
+                                     // anisotropy must be stationary (critical.hpp)
+  double critical_tolerance = 0.02;  // -, largest relative change (+ 2 SE) of eta = q/p, p and Z_mech over the window
+  double critical_tolerance_e = 0.005;       // -, largest change (+ 2 SE) of e over the window
+  double critical_tolerance_fabric = 0.05;   // -, largest relative change (+ 2 SE) of the fabric anisotropy F_a
   Vec3 strain_rates = Vec3::Zero();     // 1/s per axis, compression positive, for path "strain"
   Vec3 shear_rates = Vec3::Zero();      // 1/s, engineering shear rates xy xz yz (-L_ab, soil convention), path "strain"
   std::uint64_t steps = 0;              // steps of a strain-controlled stage
