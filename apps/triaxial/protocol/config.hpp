@@ -36,6 +36,14 @@ struct PrepareConfig {
   std::uint64_t max_steps = 5'000'000;  // give up (error) after this many steps
   bool chain = false;        // each higher p0 starts from the next lower p0's sample (false: each from the cloud)
   double dt_fraction = 0.0;  // -, time step of the preparation / Rayleigh time (0: time.dt_fraction)
+  // prepare.target_e0: the void ratio asked for at p0 (one for all p0, or one per distinct tests.p0 in
+  // config order; empty: none). The preparation's friction is searched (prepare_run.cpp).
+  std::vector<double> target_e0;
+  double target_tolerance = 0.005;     // -, |e0 - target| accepted (prepare.target_e0_tolerance)
+  double max_friction = 1.0;           // -, the search's upper friction (prepare.max_friction)
+  std::uint64_t trial_count = 2000;    // spheres of the search's trial preparations (at most sample.count)
+  /// The target for p0 (NaN: none). `p0s`: the distinct tests.p0 in config order.
+  double target_for(double p0, const std::vector<double>& p0s) const;
 };
 
 /// The path of a test (tests.path); its name and needs are its row in protocol/paths.cpp.

@@ -236,6 +236,31 @@ void check_prepare_step(const Config& c, const std::string& source) {
                     ": a frictional preparation needs prepare.dt_fraction <= 0.2 (above, it never comes to rest)");
 }
 
+// prepare.target_e0: a search over the preparation's friction (prepare_run.cpp). It sets
+// prepare.friction itself, cannot keep a chained sample's e0 (the chain sets it), and its frictional
+// trials need the frictional preparation's step (above).
+void check_target_e0(const Config& c, const std::string& source) {
+  const PrepareConfig& p = c.prepare;
+  if (p.target_e0.empty()) return;
+  std::vector<double> p0s;
+  for (const TestSpec& t : c.tests)
+    if (std::find(p0s.begin(), p0s.end(), t.p0) == p0s.end()) p0s.push_back(t.p0);
+  if (p.target_e0.size() != 1 && p.target_e0.size() != p0s.size())
+    throw ConfigError(source + ": prepare.target_e0: " + std::to_string(p.target_e0.size()) + " values for " +
+                      std::to_string(p0s.size()) + " distinct tests.p0; allowed: one value, or one per p0 in order");
+  if (p.friction > 0.0)
+    throw ConfigError(source + ": prepare.friction = " + num(p.friction) +
+                      " with prepare.target_e0: the search chooses the friction; allowed: leave it out");
+  if (p.chain)
+    throw ConfigError(source + ": prepare.chain = true with prepare.target_e0: a chained sample's e0 is set by the "
+                      "chain; allowed: chain = false (each p0 from the cloud)");
+  const double f = p.dt_fraction > 0.0 ? p.dt_fraction : c.dt_fraction;
+  if (f > k_frictional_prepare_dt)
+    throw ConfigError(source + ": " + (p.dt_fraction > 0.0 ? "prepare.dt_fraction" : "time.dt_fraction") + " = " +
+                      num(f) + " with prepare.target_e0: its trials are frictional preparations, which need "
+                      "prepare.dt_fraction <= 0.2 (above, they never come to rest)");
+}
+
 // [cyclic]: the cyclic path's bounds, count and drainage (CyclicConfig); checked against the tests'
 // paths in check_cyclic.
 void parse_cyclic(const toml::table& root, const std::string& source, CyclicConfig& c) {
