@@ -179,10 +179,10 @@ def test_dilatancy_figure_keeps_the_first_rows(campaign):
     _, tests = campaign
     _, Mc, K, _ = sf.dilatancy_inputs(tests, 0.005)
     ts = [t for t in tests if t["path"] == SEEDED[0] and t["p0"] == SEEDED[2]]
-    for t in ts:
-        assert t["dil"]["eps1"][0] < 0.002 and t["dil"]["eps1"][0] == t["eps1"][0]  # the first 1 % is not cut
-    model, d0, m, why = sf.dilatancy_model([t["dil"] for t in tests if b_of(t) == 0 and t["path"] == "constant_p"],
-                                           Mc, K)
+    for t in ts:  # the first 1 % is not cut
+        assert t["study_dil"]["eps1"][0] < 0.002 and t["study_dil"]["eps1"][0] == t["eps1"][0]
+    zero = [t["study_dil"] for t in tests if b_of(t) == 0 and t["path"] == "constant_p"]
+    model, d0, m, why = sf.dilatancy_model(zero, Mc, K)
     assert model is not None and np.isfinite(d0) and np.isfinite(m), why
     fig = sf.fig_dilatancy(tests, SEEDED[0], SEEDED[2], Mc, K)
     ax = fig.axes[0]
@@ -190,8 +190,8 @@ def test_dilatancy_figure_keeps_the_first_rows(campaign):
     mod = [ln for ln in _curves(ax) if ln.get_linestyle() == "--"]
     peaks = [ln for ln in ax.lines if ln.get_marker() == "^" and len(ln.get_xdata()) == 1]
     assert len(dem) == len(mod) == len(peaks) == len(ts)  # every seed, its model, its turning point
-    t = ts[0]
-    np.testing.assert_allclose(mod[0].get_ydata(), model(t["dil"]["eta"], t["dil"]["psi"], t["dil"]["theta"]))
+    dl = ts[0]["study_dil"]
+    np.testing.assert_allclose(mod[0].get_ydata(), model(dl["eta"], dl["psi"], dl["theta"]))
 
 
 def test_command_writes_figures_with_their_command(campaign, tmp_path):

@@ -94,8 +94,8 @@ def point_stats(ts, name):
 
 def mean_curve(ts, x, y, n=300):
     """Seeds' curves y(x) on one grid up to the longest: (grid, mean, std, count); std NaN where one seed."""
-    xs = [np.asarray(t[x] if x in t else t["dil"][x], float) for t in ts]
-    ys = [np.asarray(t[y] if y in t else t["dil"][y], float) for t in ts]
+    xs = [np.asarray(t[x], float) for t in ts]
+    ys = [np.asarray(t[y], float) for t in ts]
     if len(ts) == 1:
         return xs[0], ys[0], np.full(xs[0].shape, NAN), np.ones(xs[0].shape, int)
     grid = np.linspace(min(float(np.nanmin(a)) for a in xs), max(float(np.nanmax(a)) for a in xs), n)
@@ -248,19 +248,19 @@ def fig_stress_strain(tests, path, p0):
     return fig
 
 
-def fit_both_csl(crit):
-    """The CSL fitted with the study's xi and with xi free (csl.fit_csl) on the critical tests."""
+def fit_both_csl(crit, xi=STUDY_XI):
+    """The CSL fitted with xi fixed (the study's) and with xi free (csl.fit_csl) on the critical tests."""
     p = [t["critical"]["point"]["p"] for t in crit]
     e = [t["critical"]["point"]["e"] for t in crit]
     b = [b_key(t) for t in crit]
-    return fit_csl(p, e, b=b, xi=STUDY_XI), fit_csl(p, e, b=b)
+    return fit_csl(p, e, b=b, xi=xi), fit_csl(p, e, b=b)
 
 
 def fig_csl(tests, study_xi=STUDY_XI):
     """Fig 4: e against (p/p_a)^xi with the study's xi, against log p, and against the project's fitted xi."""
     plt = _plt()
     crit = critical_tests(tests)
-    fixed, free = fit_both_csl(crit)
+    fixed, free = fit_both_csl(crit, study_xi)
     fig, axes = plt.subplots(1, 3, figsize=(15, 4.8))
     own_xi = free["params"]["xi"] if free["fitted"] else NAN
     xis = (study_xi, None, own_xi)
@@ -385,7 +385,7 @@ def dilatancy_inputs(tests, smooth):
         K = 1.0
         note += "K = 1 (g(theta) not fitted); "
     for t in tests:
-        t["dil"] = dilatancy(t, cpar, smooth)
+        t["study_dil"] = dilatancy(t, cpar, smooth)
     return cpar, Mc, K, note
 
 
@@ -395,15 +395,15 @@ def fig_dilatancy(tests, path, p0, Mc, K, note=""):
     d0, m fitted on the path's b = 0 tests (every p0); seeds overlaid."""
     plt = _plt()
     on_path = [t for t in tests if t["path"] == path]
-    model, d0, m, why = dilatancy_model([t["dil"] for t in on_path if b_key(t) == 0 and t["status"] == "done"],
-                                        Mc, K) if np.isfinite(Mc) else (None, NAN, NAN, "M_c not fitted")
+    zero = [t["study_dil"] for t in on_path if b_key(t) == 0 and t["status"] == "done"]
+    model, d0, m, why = dilatancy_model(zero, Mc, K) if np.isfinite(Mc) else (None, NAN, NAN, "M_c not fitted")
     fig, ax = plt.subplots(figsize=(7.5, 5.6))
     groups = {k: ts for k, ts in seed_groups(on_path).items() if k[2] == round(p0)}
     shown = []
     for (_, b, _), ts in groups.items():
         c = b_color(b)
         for i, t in enumerate(ts):
-            dl = t["dil"]
+            dl = t["study_dil"]
             if not dl["d"].size:
                 continue
             shown.append(dl["d"])
