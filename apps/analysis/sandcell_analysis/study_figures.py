@@ -479,13 +479,27 @@ def draw_all(tests, out, command, p0s=None, smooth=0.005):
     for path, p0 in pairs:
         save(fig_dilatancy(tests, path, p0, Mc, K, note), out, f"dilatancy-{path}-{p0_tag(p0)}", command, files)
     seeds = max(len(ts) for ts in seed_groups(tests).values())
+    what = {"stress_strain": "Figs 2-3: q/p and eps_v against eps_1 and eps_q, one p0, every b; each curve to the end "
+                             "of its data (filled circle: stopped at the critical-state test; cross and dashed: left "
+                             "its stress path)",
+            "csl": f"Fig 4: the critical state line on (p/p_a)^xi with the study's xi = {STUDY_XI}, on log p, and on "
+                   "the project's fitted xi (the study's line curved there)",
+            "m_theta": "Fig 6: critical q/p against the Lode angle and in the pi-plane: the fitted g(theta), "
+                       f"g(theta) derived from phi = {STUDY['phi_deg']:g} deg (not the study's fit), Matsuoka-Nakai "
+                       "and Lade-Duncan through the b = 0 point",
+            "dilatancy": "Figs 8-12: d = d eps_v / d eps_q (total increments) against eta, one p0, every b, from the "
+                         "first row (the pre-peak loop; triangle: the peak of q/p, its turning point), DEM against "
+                         "Li's 3D form with d0, m fitted on the path's b = 0 tests at eps_1 >= 1 %"}
     with open(os.path.join(out, "README.md"), "w", encoding="utf-8") as fh:
         fh.write("# The study's figures (Liu, Ma, Zhou & Chang 2017), redrawn\n\n"
-                 f"Redrawn by (from the repository root):\n\n```sh\n{command}\n```\n\n"
-                 f"{len(tests)} tests, {len(critical_tests(tests))} at the critical state on their stress path; "
-                 f"up to {seeds} seed(s) per (path, b, p0). The study's xi = {STUDY_XI} on the CSL axis. "
-                 "Each PNG holds this command in its metadata (Description).\n\n"
-                 + "".join(f"- [{f}]({f})\n" for f in files))
+                 f"Redrawn by (from the repository root; `study_figures.py`):\n\n```sh\n{command}\n```\n\n"
+                 f"{len(tests)} tests, {len(critical_tests(tests))} at the critical state on their stress path (the "
+                 f"points of Figs 4 and 6); up to {seeds} seed(s) per (path, b, p0): curves are the seeds' mean with "
+                 "a +-1 SD band, points the mean with +-1 SD bars. Each PNG holds this command in its metadata "
+                 "(key Description).\n\n")
+        for stem, text in what.items():
+            names = [f for f in files if f.split("-")[0] == stem or f == stem + ".png"]
+            fh.write(f"- {text}: " + ", ".join(f"[{f}]({f})" for f in names) + "\n")
     return files
 
 
