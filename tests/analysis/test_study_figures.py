@@ -213,3 +213,14 @@ def test_command_writes_figures_with_their_command(campaign, tmp_path):
         assert f"]({f})" in readme
     r = subprocess.run(command("figures") + [str(tmp_path / "none"), "--out", out], capture_output=True, text=True)
     assert r.returncode == 2 and r.stderr.count("\n") == 1
+
+
+def test_no_critical_point_still_draws(campaign, tmp_path):
+    """A campaign still running (no test at the critical state on its path): Figs 2-3 and 8-12 are drawn,
+    Figs 4 and 6 with the study's curves only, and no model."""
+    _, tests = campaign
+    running = [dict(t, status="running") for t in tests if t["p0"] == SEEDED[2]]
+    files = sf.draw_all(running, str(tmp_path), "the command")
+    assert len(files) == 2 + 2 * 2
+    fig = sf.fig_m_theta(running)
+    assert len(fig.axes[0].containers) == 0 and len(_curves(fig.axes[0])) == 1

@@ -27,6 +27,7 @@ import math
 import os
 import shlex
 import sys
+import textwrap
 
 import numpy as np
 
@@ -265,12 +266,13 @@ def fig_csl(tests, study_xi=STUDY_XI):
     own_xi = free["params"]["xi"] if free["fitted"] else NAN
     xis = (study_xi, None, own_xi)
     pts = [(k, ts) for k, ts in seed_groups(crit).items()]
-    p_all = np.array([t["critical"]["point"]["p"] for t in crit]) if crit else np.array([PA])
+    p_all = np.array([t["critical"]["point"]["p"] for t in crit] if crit else [t["p0"] for t in tests], float)
     ps = np.geomspace(0.8 * p_all.min(), 1.25 * p_all.max(), 200)
     for ax, xi in zip(axes, xis):
         xf = (lambda p: np.asarray(p, float) / 1e6) if xi is None else (lambda p, s=xi: csl_x(p, s))
         if xi is not None and not np.isfinite(xi):
-            ax.text(0.5, 0.5, "xi not fitted: " + free["note"], transform=ax.transAxes, ha="center", wrap=True)
+            ax.text(0.5, 0.5, textwrap.fill("the CSL's xi " + free["note"], 40), transform=ax.transAxes,
+                    ha="center", va="center", color="C3")
             continue
         for (path, b, _), ts in pts:
             pm, _ = point_stats(ts, "p")
