@@ -213,6 +213,8 @@ def test_command_writes_figures_with_their_command(campaign, tmp_path):
         assert f"]({f})" in readme
     r = subprocess.run(command("figures") + [str(tmp_path / "none"), "--out", out], capture_output=True, text=True)
     assert r.returncode == 2 and r.stderr.count("\n") == 1
+    r = subprocess.run(command("figures")[:-1] + ["--help"], capture_output=True, text=True)
+    assert "\n  figures " in r.stdout
 
 
 def test_no_critical_point_still_draws(campaign, tmp_path):
