@@ -21,6 +21,10 @@ and README.md, the list of the figures and the command that redraws them (also i
 metadata, key "Description"). Only tests on their stress path that reached the critical state give
 the points of Figs 4 and 6 (critical.detect_critical with its defaults); every test is drawn in
 Figs 2-3 and 8-12. Exit status: 0 done, 2 bad input, 1 scientific stack missing.
+
+From Python (e.g. after `analyze`, whose tests carry status and critical already):
+draw_all(tests, out, command). The calls into dilatancy.py are in two adapters, dilatancy() and
+dilatancy_model(): the only places to change when its API does.
 """
 import argparse
 import math
