@@ -17,8 +17,14 @@ SEEDED = ("constant_p", 0.5, 0.5e6)  # three seeds: s1 (with the others) and s2,
 
 
 def _write(folder, path, b, p0, seed, status="done"):
+    """A caricature's results file; in folder s1 its line in index.csv too (the app's status)."""
     name = f"{'p' if path == 'constant_p' else 's3'}-b{b:.2f}-p0_{p0 / 1e3:g}kPa"
     os.makedirs(folder, exist_ok=True)
+    if folder.endswith("s1"):
+        index = os.path.join(folder, "index.csv")
+        with open(index, "a") as fh:
+            fh.write(("" if os.path.exists(index) and os.path.getsize(index) else "test,status\n")
+                     + f"{name},{'done (critical state)' if status == 'done' else status}\n")
     write_results(os.path.join(folder, name + ".h5"),
                   caricature(p0, b, rows=301, rng=np.random.default_rng(seed)),
                   {"job": name, "stage": "shear", "path": path, "b": str(b), "p0": str(p0), "status": status})
@@ -140,6 +146,9 @@ def test_stress_strain_figure(campaign):
         ends = [ln for ln in ax.lines if len(ln.get_xdata()) == 1]
         assert len(ends) == len(ts)  # every seed's end marked
         assert len(ax.collections) == 1  # the seeds' band, of the one seeded group
+    # how each ended: s1's index.csv says critical state (circle); s2, s3 have none (done: diamond)
+    ends = [ln.get_marker() for ln in fig.axes[0].lines if len(ln.get_xdata()) == 1]
+    assert sorted(ends) == ["D", "D", "o", "o", "o"]
     # each single-seed curve runs to its test's last row
     for t in ts:
         if b_of(t) != SEEDED[1]:

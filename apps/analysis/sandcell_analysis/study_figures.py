@@ -8,8 +8,9 @@ curves are drawn as their mean with a +-1 standard deviation band and every seed
 points as means with +-1 standard deviation bars. Writes into DIR, as PNG:
   stress_strain-<path>-p0_<p0>kPa  Figs 2-3: q/p and eps_v against eps_1 and against eps_q, one p0, every b;
                                    each curve runs to the end of its data; a filled circle marks a test
-                                   stopped at the app's critical-state test, a cross one that left its
-                                   stress path (drawn dashed), an open circle one still running
+                                   stopped at the app's critical-state test (index.csv), a diamond one
+                                   done at its set end, a cross one that left its stress path (drawn
+                                   dashed), an open circle one still running
   csl                              Fig 4: e against (p/p_a)^xi with the study's xi, against log p, and
                                    against (p/p_a)^xi with the project's fitted xi
   m_theta                          Fig 6: critical q/p against the Lode angle and in the pi-plane: the
@@ -23,8 +24,8 @@ the points of Figs 4 and 6 (critical.detect_critical with its defaults); every t
 Figs 2-3 and 8-12. Exit status: 0 done, 2 bad input, 1 scientific stack missing.
 
 From Python (e.g. after `analyze`, whose tests carry status and critical already):
-draw_all(tests, out, command). The calls into dilatancy.py are in two adapters, dilatancy() and
-dilatancy_model(): the only places to change when its API does.
+draw_all(tests, out, command). The calls into critical.py and dilatancy.py are in three adapters,
+critical_of(), dilatancy() and dilatancy_model(): the only places to change when their APIs do.
 """
 import argparse
 import math
@@ -40,7 +41,7 @@ from .csl import PA, csl_e, fit_csl
 from .fitting import NAN
 from .m_theta import fit_m_theta, m_theta
 from .reference import STUDY
-from .results import PATHS, InputError, attr, b_key, collect_files, open_results, read_test
+from .results import PATHS, InputError, attr, b_key, collect_files, open_results, read_index, read_test
 
 PROG = os.environ.get("SANDCELL_ANALYZE_PROG", "python -m sandcell_analysis figures")
 PATH_LABEL = {"constant_p": "constant p", "constant_sigma3": "constant sigma3"}
@@ -52,8 +53,9 @@ FIT_FROM = 0.01  # the dilatancy model's d0, m are fitted on eps_1 >= 1 % (as `a
 
 def load_tests(inputs):
     """The shear tests of the inputs (results.read_test) with status ("done", "failed", "running"),
-    status_reason, source (the folder: a seed) and critical (detect_critical's defaults)."""
-    tests = []
+    status_reason, ended (how: "critical" where the folder's index.csv says "done (critical state)",
+    else the status), source (the folder: a seed) and critical (critical_of)."""
+    tests, index = [], {}
     for path, _ in collect_files(inputs):
         t, _why = read_test(path)
         if t is None or t["rows"] < 5:
@@ -63,7 +65,11 @@ def load_tests(inputs):
         t["status"] = str(status) if status else "running"
         t["status_reason"] = str(reason or "")
         t["source"] = os.path.dirname(os.path.abspath(path))
-        t["critical"] = detect_critical(t["eps1"], t)
+        if t["source"] not in index:
+            index[t["source"]] = {r.get("test"): r.get("status", "") for r in read_index(t["source"])}
+        said = index[t["source"]].get(t["name"], "")
+        t["ended"] = "critical" if t["status"] == "done" and "critical" in said else t["status"]
+        t["critical"] = critical_of(t)
         tests.append(t)
     if not tests:
         raise InputError("no shear tests in " + ", ".join(inputs))
@@ -165,7 +171,13 @@ def phi22_Mc_K(phi_deg=None):
     return Mc, Me / Mc
 
 
-# ---------------------------------------------------------------- the dilatancy adapter
+# ---------------------------------------------------------------- the adapters (APIs being changed)
+
+def critical_of(test):
+    """ADAPTER to critical.py (its window is moving to eps_q: update here only): the critical-state
+    test of a test's series with the package's defaults, detect_critical's dict (reached, point)."""
+    return detect_critical(test["eps1"], test)
+
 
 def dilatancy(test, cpar, smooth, fit_from=FIT_FROM):
     """ADAPTER to dilatancy.py (its API is changing: update here only). The test's dilatancy series over
@@ -208,12 +220,12 @@ def b_color(b):
     return colormaps["viridis"](0.9 * min(max(b, 0.0), 1.0)) if np.isfinite(b) else "0.4"
 
 
-END_MARK = {"done": ("o", "stopped at the critical-state test"), "failed": ("x", "left its stress path"),
-            "running": ("o", "still running (open)")}
+END_MARK = {"critical": ("o", "stopped at the app's critical-state test"), "done": ("D", "done (its set end)"),
+            "failed": ("x", "left its stress path"), "running": ("o", "still running (open)")}
 
 
 def _end(ax, t, x, y, color):
-    mk, _ = END_MARK.get(t["status"], ("o", ""))
+    mk, _ = END_MARK.get(t.get("ended", t["status"]), ("o", ""))
     face = color if t["status"] == "done" else "none"
     ax.plot([x], [y], mk, ms=6, mfc=face, mec=color, color=color, zorder=4)
 
@@ -238,8 +250,9 @@ def fig_stress_strain(tests, path, p0):
                 for t in ts:
                     _end(ax, t, 100 * t[x][-1], scale * t[y][-1], c)
     for mk, (sym, text) in END_MARK.items():
-        if any(t["status"] == mk for ts in groups.values() for t in ts):
-            axes[0, 0].plot([], [], sym, color="0.3", mfc="0.3" if mk == "done" else "none", label="end: " + text)
+        if any(t.get("ended", t["status"]) == mk for ts in groups.values() for t in ts):
+            axes[0, 0].plot([], [], sym, color="0.3", mfc="0.3" if mk in ("critical", "done") else "none",
+                            label="end: " + text)
     axes[0, 0].set_ylabel("stress ratio q/p")
     axes[1, 0].set_ylabel("volumetric strain eps_v (%), compression +")
     axes[1, 0].set_xlabel("axial strain eps_1 (%)")
@@ -486,8 +499,8 @@ def draw_all(tests, out, command, p0s=None, smooth=0.005):
         save(fig_dilatancy(tests, path, p0, Mc, K, note), out, f"dilatancy-{path}-{p0_tag(p0)}", command, files)
     seeds = max(len(ts) for ts in seed_groups(tests).values())
     what = {"stress_strain": "Figs 2-3: q/p and eps_v against eps_1 and eps_q, one p0, every b; each curve to the end "
-                             "of its data (filled circle: stopped at the critical-state test; cross and dashed: left "
-                             "its stress path)",
+                             "of its data (filled circle: stopped at the app's critical-state test; diamond: done at "
+                             "its set end; cross and dashed: left its stress path; open circle: running)",
             "csl": f"Fig 4: the critical state line on (p/p_a)^xi with the study's xi = {STUDY_XI}, on log p, and on "
                    "the project's fitted xi (the study's line curved there)",
             "m_theta": "Fig 6: critical q/p against the Lode angle and in the pi-plane: the fitted g(theta), "
