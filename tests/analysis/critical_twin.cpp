@@ -2,12 +2,14 @@
 // test_critical_twin.py, which runs the Python test (sandcell_analysis.critical) on the same series
 // and asserts that the two agree.
 //
-//     critical_twin SERIES.csv
+//     critical_twin SERIES.csv [WINDOW TOLERANCE TOLERANCE_E TOLERANCE_FABRIC]
 //
 // SERIES.csv: a header, then rows `series,eps_q,p,q,e,z_mech,fabric_anisotropy` (series: an integer
 // id; the rows of a series consecutive, eps_q non-decreasing). Prints one line per series:
 //     series reached rows change_eta se_eta change_p se_p change_e se_e change_z se_z change_fa se_fa first_row
-// for the test on the whole series with the app's defaults (CriticalTest{}), and first_row: the
+// for the test on the whole series with the app's defaults (CriticalTest{}, or the four settings
+// given: a run's shear.critical_window, critical_tolerance, critical_tolerance_e and
+// critical_tolerance_fabric), and first_row: the
 // rows n of the first prefix [0, n) the test accepts, as the app applies it after every series row
 // with shear.stop_at_critical (0: none). Exit 2 with one line on bad input.
 #include "critical.hpp"
@@ -36,7 +38,7 @@ int main(int argc, char** argv) {
   using sandcell::triaxial::check_critical;
   using sandcell::triaxial::CriticalSeries;
   using sandcell::triaxial::CriticalTest;
-  if (argc != 2) return fail("usage: critical_twin SERIES.csv");
+  if (argc != 2 && argc != 6) return fail("usage: critical_twin SERIES.csv [WINDOW TOL TOL_E TOL_FABRIC]");
   std::ifstream in(argv[1]);
   if (!in) return fail(std::string("cannot read SERIES.csv: ") + argv[1]);
   std::map<long, Series> all;
@@ -63,7 +65,13 @@ int main(int argc, char** argv) {
     t.z.push_back(v[4]);
     t.fa.push_back(v[5]);
   }
-  const CriticalTest test{};
+  CriticalTest test{};
+  if (argc == 6) {
+    test.window = std::stod(argv[2]);
+    test.tolerance = std::stod(argv[3]);
+    test.tolerance_e = std::stod(argv[4]);
+    test.tolerance_fabric = std::stod(argv[5]);
+  }
   for (const auto& [id, t] : all) {
     const auto series = [&](std::size_t n) {
       const auto head = [&](const std::vector<double>& v) { return std::span<const double>(v.data(), n); };
