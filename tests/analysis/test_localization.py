@@ -268,7 +268,8 @@ def test_band_profile(tmp_path):
     out = os.path.join(tmp, "out-band")
     res = run(path, "--out", out)
     assert res.returncode == 0, f"banded: exit {res.returncode}, {res.stderr}"
-    assert "band profile: whole-test mode (1,0,1)" in res.stdout and "band slab(s) 4,5" in res.stdout, res.stdout
+    assert "banded: mode (1,0,1)" in res.stdout and "Profile: whole-test mode (1,0,1)" in res.stdout \
+        and "band slab(s) 4,5" in res.stdout, res.stdout
     table = list(csv.DictReader(open(os.path.join(out, "banded-localization-band.csv"))))
     assert list(table[0]) == ["step", "eps_1", "e_band", "e_outside", "e_whole"] + [f"e_{j}" for j in range(K)], \
         list(table[0])
