@@ -10,21 +10,25 @@ A field is judged twice, and called banded only when both say so.
          per particle with the test's own non-affine rms (per component), through the same binning and
          central differences. This is the sampling noise of the bins with its true spatial structure (the
          differences couple bins two apart), which shuffling the bins destroyed.
-     (b) correlated Gaussian: a Gaussian random field on the grid whose spectrum is the particle noise's
-         (the mean spectrum of the (a) surrogates) plus a correlated part of exponential covariance
-         exp(-r / ell); the correlated fraction nu and the correlation length ell are fitted to the test's
-         own field by maximum likelihood (each Fourier coefficient's power exponential about the model),
-         the candidate mode and its harmonics left out of the fit so that a band does not make its own null.
+     (b) correlated Gaussian: bin-mean displacement fields drawn as the particle noise (its level from the
+         scatter of the displacements within the bins) plus a spatially correlated Gaussian field, through the
+         same differences and invariant. The correlated part's power and covariance length ell (Gaussian or
+         exponential covariance, whichever fits better) are fitted to the test's own bin means by maximum
+         likelihood (each Fourier coefficient's power exponential about the model), the candidate mode and its
+         harmonics left out of the fit so that a band does not make its own null.
    The threshold is the QUANTILE-th quantile of S over N_SURROGATES of each kind, the larger of the two;
    S above it is significant. A homogeneous field is thus flagged with probability ~1 - QUANTILE whatever
    the number of particles and the grid: the false-positive rate is set by construction, not by N.
 2. Physically, across the candidate mode (K slabs of equal xi, localization.slab_strain and the exact
-   slab void ratios of localization.band_profile), the band slabs being those of localization.band_slabs:
-     - strain: the band slabs' mean deps_q at least STRAIN_RATIO times the outside's;
+   slab void ratios of localization.profile_of), the band slabs being those of localization.band_slabs:
+     - strain: the band slabs' mean deps_q increment at least STRAIN_RATIO times the outside's, in at least
+       one snapshot-to-snapshot increment (the whole test from its first snapshot averages the deformation
+       before the band formed into the band's and the outside's alike);
      - void ratio (whole test only, it builds up over the test): the band's void ratio minus the outside's
        grows from the first snapshot to the last by at least VOID_CONTRAST and by at least NOISE_SIGMAS
-       times its sampling noise, sigma_slab sqrt(2 (1/n_band + 1/n_out)), sigma_slab the scatter of the
-       slabs' void ratios at the first snapshot (a homogeneous sample: the packing's own noise at this N).
+       times its sampling noise: the (robust) scatter of the outside slabs' own growth of e through the two
+       means (void_contrast; the slabs are material slabs, so the packing's scatter at the first snapshot stays
+       in them and cancels in the growth).
 
 The constants were fixed before the detector was run on any campaign file:
   QUANTILE = 0.99: a 1 % false-positive rate for the statistic alone, per field judged.
@@ -84,72 +88,108 @@ def shares_of(fields, table):
 
 def noise_surrogates(s_a, u, L_a, L_b, G, table, n, rng):
     """S of n surrogates (a): the affine increment plus independent Gaussian particle displacements of the test's
-    rms per component, binned as the test; and their mean power spectrum (the particle noise's)."""
-    from .localization import binned_strain, strain_invariants
+    rms per component, binned as the test; and their mean power spectrum (the particle noise's). The mean of c
+    independent Gaussians of standard deviation sigma is Gaussian of sigma / sqrt(c): the bin means are drawn so,
+    exactly as binning the particles' draws would give them, at the cost of the grid instead of the particles."""
+    from .localization import bin_counts, strain_of_means, strain_invariants
     sigma = u.std(axis=0)
-    fields = np.empty((n, G, G, G))
-    for i in range(n):
-        fields[i] = strain_invariants(binned_strain(s_a, sigma * rng.standard_normal(u.shape), L_a, L_b, G))[0]
-    return shares_of(fields, table)
+    _, count = bin_counts(s_a, G)
+    U = sigma * rng.standard_normal((n, G, G, G, 3)) / np.sqrt(count).reshape(G, G, G, 1)
+    return shares_of(strain_invariants(strain_of_means(U, L_a, L_b))[0], table)
 
 
-def fit_correlation(q, L, noise_power, exclude):
-    """Maximum-likelihood (nu, ell) of the model spectrum (1 - nu) noise + nu (1 + k^2 ell^2)^-2 (both normalized over
-    the bins fitted) to the field q's Fourier powers, the zero bin and `exclude` left out; and the model's spectrum
-    over every bin (0 at k = 0): the surrogates' (b) spectrum."""
-    G = q.shape[0]
-    power = np.abs(np.fft.fftn(q - q.mean())).ravel() ** 2
+def chunks(n, per_item, budget=2_000_000):
+    """Batch sizes summing to n, each batch at most ~budget values of per_item each (memory)."""
+    per = max(1, budget // per_item)
+    return [min(per, n - i) for i in range(0, n, per)]
+
+
+def covariance_spectrum(k2, ell, shape):
+    """The spectrum (up to a factor) of an isotropic covariance of length ell: "gaussian" exp(-r^2 / 2 ell^2) or
+    "exponential" exp(-r / ell)."""
+    if shape == "gaussian":
+        return np.exp(-0.5 * k2 * ell * ell)
+    return (1.0 + k2 * ell * ell) ** -2
+
+
+def fit_correlation(s_a, u, L, G, exclude):
+    """The test's non-affine displacement field as the bin means see it: independent particle noise (its level known
+    from the scatter of u within the bins) plus a spatially correlated Gaussian part of covariance length ell. The
+    correlated part's power c, its length ell and its covariance shape (Gaussian or exponential) are the maximum-
+    likelihood fit to the Fourier powers of the bin means (each exponential about the model), the zero bin and
+    `exclude` (the candidate mode's family) left out. Returns a dict: ell (m), shape, fraction (the correlated part's
+    share of the bin means' variance in the model), sigma_bin [G^3, 3] (the noise of each bin mean) and spectrum
+    (flat, fftn order: E|fft|^2 of one component's correlated part)."""
+    from .localization import bin_counts
+    flat, count = bin_counts(s_a, G)
+    mean = np.stack([np.bincount(flat, u[:, c], G ** 3) / count for c in range(3)], -1)
+    within = np.stack([np.bincount(flat, (u[:, c] - mean[flat, c]) ** 2, G ** 3) for c in range(3)], -1)
+    var = within.sum(axis=0) / max(len(u) - G ** 3, 1)  # pooled within-bin variance per component
+    sigma_bin = np.sqrt(var[None, :] / count[:, None])
+    power = sum(np.abs(np.fft.fftn((mean[:, c] - mean[:, c].mean()).reshape(G, G, G))).ravel() ** 2 for c in range(3))
+    white = G ** 3 * float((sigma_bin ** 2).mean(axis=0).sum())  # E|fft|^2 of the noise, summed over components
     keep = np.ones(G ** 3, bool)
     keep[0] = False
     keep[exclude] = False
     k2 = wavenumbers2(G, L)
-    noise = np.maximum(noise_power, 1e-300)
-    noise = noise / noise[keep].sum()
-    best = (math.inf, 0.0, math.nan, None)
-    for ell in np.geomspace(ELL_RANGE[0] * min(L), ELL_RANGE[1] * max(L), ELLS):
-        g = (1.0 + k2 * ell * ell) ** -2
-        g /= g[keep].sum()
-        for nu in NUS:
-            shape = (1.0 - nu) * noise + nu * g
-            sk = shape[keep]
-            scale = np.mean(power[keep] / sk)
-            nll = np.log(sk).sum() + keep.sum() * math.log(max(scale, 1e-300))
-            if nll < best[0]:
-                best = (nll, float(nu), float(ell), shape)
-    _, nu, ell, shape = best
-    model = shape.copy()
-    model[0] = 0.0
-    return nu, ell, model
+    pk = power[keep]
+    best = (math.inf, 0.0, math.nan, "none")
+    scales = np.concatenate([[0.0], white * np.geomspace(1e-4, 1e6, 81)])
+    for shape in ("gaussian", "exponential"):
+        for ell in np.geomspace(ELL_RANGE[0] * min(L), ELL_RANGE[1] * max(L), ELLS):
+            g = covariance_spectrum(k2[keep], ell, shape)
+            g /= g.mean()
+            model = white + scales[:, None] * g[None, :]
+            nll = (np.log(model) + pk / model).sum(axis=1)
+            m = int(np.argmin(nll))
+            if nll[m] < best[0]:
+                best = (float(nll[m]), float(scales[m]), float(ell), shape)
+    _, c, ell, shape = best
+    g = covariance_spectrum(k2, ell, shape)
+    g /= g[keep].mean()
+    spectrum = c * g / 3.0
+    spectrum[0] = 0.0
+    corr_var = spectrum.sum() * 3.0 / G ** 6
+    noise_var = white / G ** 3  # the particle noise's variance of the bin means, summed over components
+    return dict(ell=ell if c > 0 else 0.0, shape=shape, fraction=float(corr_var / (corr_var + noise_var))
+                if corr_var + noise_var > 0 else 0.0, sigma_bin=sigma_bin, spectrum=spectrum)
 
 
-def gaussian_surrogates(model, G, table, n, rng):
-    """S of n surrogates (b): Gaussian random fields on the G-grid with the model spectrum (flat, fftn order)."""
-    amp = np.sqrt(model).reshape(G, G, G)
-    white = rng.standard_normal((n, G, G, G))
-    fields = np.fft.ifftn(np.fft.fftn(white, axes=(1, 2, 3)) * amp, axes=(1, 2, 3)).real
-    return shares_of(fields, table)[0]
+def gaussian_surrogates(fit, L_a, L_b, G, table, n, rng):
+    """S of n surrogates (b): bin-mean displacements drawn as the fit's particle noise (per bin) plus its correlated
+    Gaussian field, through the test's differences and invariant."""
+    from .localization import strain_of_means, strain_invariants
+    amp = np.sqrt(fit["spectrum"] / G ** 3).reshape(G, G, G, 1)
+    shares = []
+    for m in chunks(n, G ** 3):
+        white = rng.standard_normal((m, G, G, G, 3))
+        corr = np.fft.ifftn(np.fft.fftn(white, axes=(1, 2, 3)) * amp, axes=(1, 2, 3)).real
+        U = corr + fit["sigma_bin"].reshape(G, G, G, 3) * rng.standard_normal((m, G, G, G, 3))
+        shares.append(shares_of(strain_invariants(strain_of_means(U, L_a, L_b))[0], table)[0])
+    return np.concatenate(shares)
 
 
 def judge_field(q, s_a, u, L_a, L_b, table, n=N_SURROGATES, seed=SEED):
     """The statistical test of one local deps_q field q [G, G, G] (localization.local_strain's invariant), from the
     particles' fractional coordinates s_a and non-affine displacements u: a dict with the strongest mode (hkl) and its
-    share, the (a) and (b) thresholds, the fitted correlation length ell (m) and fraction nu, and significant."""
+    share, the (a) and (b) thresholds, the fitted correlation length ell (m), shape and correlated fraction nu, and
+    significant."""
     from .localization import strongest_mode
     G = q.shape[0]
     hkl, share = strongest_mode(q, table)
     out = dict(hkl=hkl, share=share, threshold_noise=math.nan, threshold_gauss=math.nan, ell=math.nan, nu=math.nan,
-               significant=False)
+               shape="", significant=False)
     if not any(hkl):
         return out
     rng = np.random.default_rng(seed)
-    L = 0.5 * (np.asarray(L_a, float) + np.asarray(L_b, float))
-    s_noise, noise_power = noise_surrogates(s_a, u, np.asarray(L_a, float), np.asarray(L_b, float), G, table, n, rng)
-    nu, ell, model = fit_correlation(q, L, noise_power, mode_family(hkl, G))
-    s_gauss = gaussian_surrogates(model, G, table, n, rng)
+    L_a, L_b = np.asarray(L_a, float), np.asarray(L_b, float)
+    s_noise, _ = noise_surrogates(s_a, u, L_a, L_b, G, table, n, rng)
+    fit = fit_correlation(s_a, u, 0.5 * (L_a + L_b), G, mode_family(hkl, G))
+    s_gauss = gaussian_surrogates(fit, L_a, L_b, G, table, n, rng)
     t_noise = float(np.nanquantile(s_noise, QUANTILE)) if np.isfinite(s_noise).any() else 0.0
-    t_gauss = float(np.nanquantile(s_gauss, QUANTILE))
-    out.update(threshold_noise=t_noise, threshold_gauss=t_gauss, ell=ell, nu=nu,
-               significant=bool(share > max(t_noise, t_gauss)))
+    t_gauss = float(np.nanquantile(s_gauss, QUANTILE)) if np.isfinite(s_gauss).any() else 0.0
+    out.update(threshold_noise=t_noise, threshold_gauss=t_gauss, ell=fit["ell"], nu=fit["fraction"],
+               shape=fit["shape"], significant=bool(share > max(t_noise, t_gauss)))
     return out
 
 
@@ -161,13 +201,20 @@ def strain_ratio(q_slabs, band):
 
 def void_contrast(e_first, e_last, band):
     """(the growth of e_band - e_outside from the first snapshot to the last, its sampling noise) from the slabs'
-    void ratios; the noise from the scatter of the slabs at the first snapshot."""
+    void ratios. The slabs are material slabs (localization.mode_coordinate), so the packing's own scatter at the
+    first snapshot largely stays in them and cancels in the growth; what does not is the slabs' change of e by the
+    particles' motion and any diffuse dilation. The noise is that: the scatter of the outside slabs' growth of e,
+    sigma_g, through the two means, sigma_g sqrt(1/n_band + 1/n_out). sigma_g is the normal-consistent median
+    absolute deviation (1.4826 MAD), so that the band's edge slabs, left outside by band_slabs when the band is
+    wider than they, do not count as noise."""
     nb, no = int(band.sum()), int((~band).sum())
-    if nb == 0 or no == 0:
+    if nb == 0 or no < 2:
         return math.nan, math.nan
-    growth = (e_last[band].mean() - e_last[~band].mean()) - (e_first[band].mean() - e_first[~band].mean())
-    sigma = float(np.std(e_first, ddof=1))
-    return float(growth), sigma * math.sqrt(2.0 * (1.0 / nb + 1.0 / no))
+    g = np.asarray(e_last, float) - np.asarray(e_first, float)
+    growth = g[band].mean() - g[~band].mean()
+    out = g[~band]
+    sigma = 1.4826 * float(np.median(np.abs(out - np.median(out))))  # robust: the band's edge slabs left outside
+    return float(growth), sigma * math.sqrt(1.0 / nb + 1.0 / no)
 
 
 def verdict(judged, ratio, growth=None, noise=None):

@@ -121,18 +121,34 @@ def increment_field(id_a, x_a, L_a, id_b, x_b, L_b, G):
     return binned_strain(s_a, u, L_a, L_b, G), ia, s_a, u
 
 
-def binned_strain(s_a, u, L_a, L_b, G):
-    """Local strain increments [G, G, G, 3, 3] from the particles' fractional coordinates s_a (at a) and non-affine
-    displacements u, the cell going from L_a to L_b. Raises ValueError on an empty bin."""
+def bin_counts(s_a, G):
+    """The bin of each particle (flat index into the G-grid) and the particles per bin. Raises ValueError on an
+    empty bin."""
     # floor then mod: a coordinate a hair below 0 (unwrapped) lands in the last bin, not at index -1
     cell = np.floor(s_a * G).astype(np.int64) % G
     flat = (cell[:, 0] * G + cell[:, 1]) * G + cell[:, 2]
     count = np.bincount(flat, minlength=G ** 3)
     if not count.all():
         raise ValueError(f"{np.count_nonzero(count == 0)} of {G ** 3} bins are empty")
+    return flat, count
+
+
+def binned_strain(s_a, u, L_a, L_b, G):
+    """Local strain increments [G, G, G, 3, 3] from the particles' fractional coordinates s_a (at a) and non-affine
+    displacements u, the cell going from L_a to L_b. Raises ValueError on an empty bin."""
+    flat, count = bin_counts(s_a, G)
     U = np.stack([np.bincount(flat, u[:, c], G ** 3) / count for c in range(3)], -1).reshape(G, G, G, 3)
+    return strain_of_means(U, L_a, L_b)
+
+
+def strain_of_means(U, L_a, L_b):
+    """The local strain [..., G, G, G, 3, 3] of bin-mean non-affine displacements U [..., G, G, G, 3]: periodic
+    central differences over the mean cell's bin spacing, plus the affine increment, compression positive."""
+    G = U.shape[-2]
     spacing = 0.5 * (L_a + L_b) / G
-    grad = np.stack([(np.roll(U, -1, m) - np.roll(U, 1, m)) / (2.0 * spacing[m]) for m in range(3)], -1)  # [.., i, m]
+    axes = range(U.ndim - 4, U.ndim - 1)
+    grad = np.stack([(np.roll(U, -1, a) - np.roll(U, 1, a)) / (2.0 * spacing[m]) for m, a in enumerate(axes)],
+                    -1)  # [..., i, m]
     affine = np.diag(np.log(L_b / L_a))
     return -(affine + 0.5 * (grad + np.swapaxes(grad, -1, -2)))
 
@@ -283,22 +299,25 @@ def void_ratio(volume, solid):
         return (volume - solid) / solid
 
 
-def band_profile(f, path, series, G, K, whole=None):
-    """The band profile of a results file and its verdict (a dict): the strongest mode of the whole-test increment
-    and the band detector's test of that field (band_detector: "judged", "banded" and the reasons "why" not), the
-    local strain of K slabs across the mode over the whole test, its band slabs and their strain ratio, the void
-    ratio per slab, of the band's slabs, of the rest and of all at every snapshot, and the growth of the band's
-    void-ratio contrast. "rows" is None with a "note" when there is no profile (a uniform field, no radii). whole:
-    the whole-test increment's stats if already computed (increment_stats with particles)."""
+def profile_of(snaps, series, G, K, whole=None):
+    """The band profile of a test and its verdict (a dict) from its snapshots [(step, ids, positions, cell lengths,
+    radii or None)]: the strongest mode of the whole-test increment (first snapshot to last) and the band detector's
+    test of that field (band_detector: "judged", "banded" and the reasons "why" not), the local strain of K slabs
+    across the mode over the whole test, its band slabs and their strain ratio, the void ratio per slab, of the
+    band's slabs, of the rest and of all at every snapshot, and the growth of the band's void-ratio contrast. "rows"
+    is None with a "note" when there is no profile (a uniform field, no radii). The strain criterion ("ratio") is
+    the largest band/outside deps_q ratio of the snapshot-to-snapshot increments across the whole test's mode
+    ("ratios"; "ratio_whole": the whole test's). whole: the whole-test increment's
+    stats if already computed (increment_stats with particles). series: /series (step, strain, e) for eps_1 and e.
+    Raises ValueError on an empty bin or slab."""
     from . import band_detector as bd
-    names = snapshot_names(f, path)  # the stage's end replacing the last interval snapshot, as the increments
-    step_a, id_a, x_a, L_a = read_snapshot(f, names[0], path)
-    step_b, id_b, x_b, L_b = read_snapshot(f, names[-1], path)
+    step_a, id_a, x_a, L_a, _ = snaps[0]
+    step_b, id_b, x_b, L_b, _ = snaps[-1]
     if whole is None:
         try:
             deps, _, s_a, u = increment_field(id_a, x_a, L_a, id_b, x_b, L_b, G)
         except ValueError as e:
-            fail(f"{path}: whole test, steps {step_a}-{step_b}: {e} (G = {G}): use a smaller --grid")
+            raise ValueError(f"{e} (G = {G}): use a smaller --grid") from None
         whole, _ = increment_stats(deps, L_a, L_b, mode_table(G), particles=(s_a, u))
     hkl = (whole["mode_h"], whole["mode_k"], whole["mode_l"])
     judged = dict(hkl=hkl, share=whole["mode_share"], threshold_noise=whole["threshold_noise"],
@@ -311,24 +330,32 @@ def band_profile(f, path, series, G, K, whole=None):
         out["why"] = ["the field is uniform to round-off"]
         out["note"] = f"no band: the whole test's local deps_q (steps {step_a}-{step_b}) is uniform to round-off"
         return out
-    missing = [n for n in names if "radius" not in f["snapshots"][n]]
     try:
         deps = slab_strain(id_a, x_a, L_a, id_b, x_b, L_b, hkl, K)
     except ValueError as e:
-        fail(f"{path}: whole test, steps {step_a}-{step_b}: {e}: use fewer --slabs")
+        raise ValueError(f"{e}: use fewer --slabs") from None
     q, v = strain_invariants(deps)
     band = band_slabs(q)
-    out.update(deps_q=q, deps_v=v, band=band, ratio=bd.strain_ratio(q, band))
+    # the strain criterion on the strain increments (snapshot to snapshot) across the whole test's mode: the whole
+    # test averages the deformation before the band formed into the band's and the outside's alike
+    ratios = []
+    for (_, id_p, x_p, L_p, _), (_, id_n, x_n, L_n, _) in zip(snaps[:-1], snaps[1:]):
+        try:
+            q_inc = strain_invariants(slab_strain(id_p, x_p, L_p, id_n, x_n, L_n, hkl, K))[0]
+        except ValueError as e:
+            raise ValueError(f"{e}: use fewer --slabs") from None
+        ratios.append(bd.strain_ratio(q_inc, band_slabs(q_inc)))
+    out.update(deps_q=q, deps_v=v, band=band, ratio_whole=bd.strain_ratio(q, band), ratios=ratios,
+               ratio=max(ratios))
+    missing = [str(sn[0]) for sn in snaps if sn[4] is None]
     if missing:
-        out["banded"], out["why"] = bd.verdict(judged, out["ratio"])
-        out["banded"], out["why"] = False, out["why"] + ["no void ratios (snapshots without radii)"]
-        out["note"] = (f"no band verdict: snapshot(s) {', '.join(missing[:3])} lack the particle radii (no void "
-                       "ratios); no band profile")
+        out["why"] = ["no void ratios (snapshots without radii)"]
+        out["note"] = (f"no band verdict: snapshot(s) at step {', '.join(missing[:3])} lack the particle radii (no "
+                       "void ratios); no band profile")
         return out
     rows = []
-    for name in names:
-        step, _, x, L = read_snapshot(f, name, path)
-        solid = slab_solid_volumes(x, np.asarray(f["snapshots"][name]["radius"][:], float), L, hkl, K)
+    for step, _, x, L, r in snaps:
+        solid = slab_solid_volumes(x, r, L, hkl, K)
         V = float(np.prod(L))
         rows.append(dict(step=step, eps_1=float(np.interp(step, series["step"], series["strain"][:, 0])) + 0.0,  # no -0
                          e_band=void_ratio(band.sum() * V / K, solid[band].sum()),
@@ -362,54 +389,90 @@ def write_text(path, text):
     write_atomic(path, write)
 
 
+def read_snapshots(f, path):
+    """The snapshots of an open results file for the increments and the band profile: [(step, ids, positions, cell
+    lengths, radii or None)] (snapshot_names: the stage's end replacing the last interval snapshot)."""
+    snaps = []
+    for name in snapshot_names(f, path):
+        g = f["snapshots"][name]
+        snaps.append(read_snapshot(f, name, path) + (np.asarray(g["radius"][:], float) if "radius" in g else None,))
+    return snaps
+
+
+def band_profile(f, path, series, G, K):
+    """The band profile of a results file and its verdict (profile_of on its snapshots; exit 2 on an empty bin or
+    slab)."""
+    snaps = read_snapshots(f, path)
+    try:
+        return profile_of(snaps, series, G, K)
+    except ValueError as e:
+        fail(f"{path}: whole test, steps {snaps[0][0]}-{snaps[-1][0]}: {e}")
+
+
 def analyse(path, G_opt, whole, K=SLABS):
     """Rows of statistics and the local deps_q fields of every increment of one results file, its band profile and
-    verdict, and the band's onset and persistence over the increments (band_detector.onset_persistence)."""
-    from . import band_detector as bd
+    verdict, and the band's onset and persistence over the increments (judge_test on its snapshots)."""
     with open_results(path) as f:
         series = read_series(f, path)
-        names = snapshot_names(f, path, whole)
-        rows, fields = [], []
-        step_a, id_a, x_a, L_a = read_snapshot(f, names[0], path)
-        G = G_opt or default_grid(len(id_a))
-        table = mode_table(G)
-        first_step = step_a
-        for name in names[1:]:
-            step_b, id_b, x_b, L_b = read_snapshot(f, name, path)
+        snaps = read_snapshots(f, path)
+    G = G_opt or default_grid(len(snaps[0][1]))
+    name = os.path.basename(path)
+
+    def log(r):
+        print(f"{PROG}: {name}: steps {r['step_a']}-{r['step_b']}, eps1 {r['eps1_mid']:.4f}: deps_q macro "
+              f"{r['deps_q_macro']:.3e}, local mean {r['deps_q_mean']:.3e}, CV {r['deps_q_cv']:.3f}, "
+              f"top-10% {r['top10_share']:.3f}, mode ({r['mode_h']},{r['mode_k']},{r['mode_l']}) "
+              f"{r['mode_share']:.3f} (shuffled {r['shuffled_share']:.3f}; surrogates' quantile "
+              f"{max(r['threshold_noise'], r['threshold_gauss']):.3f}), normal {r['normal_angle_deg']:.1f} deg "
+              f"to axis 1, band/outside deps_q {r['strain_ratio']:.2f}: "
+              f"{'band' if r['band_detected'] else 'no band'}", flush=True)
+    try:
+        res = judge_test(snaps, series, G, K, whole, log)
+    except ValueError as e:
+        fail(f"{path}: {e}")
+    print(f"{PROG}: {name}: {band_line(res['band'])}", flush=True)
+    return res
+
+
+def judge_test(snaps, series, G, K=SLABS, whole=False, log=None):
+    """The increments (snapshot to snapshot; with whole, the first to the last only) of a test's snapshots
+    [(step, ids, positions, cell lengths, radii or None)]: their rows of statistics (COLUMNS), the band detector's
+    test of each and its slab strain ratio across its mode, their deps_q fields, the band profile and verdict of the
+    whole test (profile_of), and the onset and persistence (band_detector.onset_persistence). log(row) is called
+    for each increment. Raises ValueError (naming the steps) on an empty bin or slab."""
+    from . import band_detector as bd
+    table = mode_table(G)
+    rows, fields = [], []
+    pairs = [(snaps[0], snaps[-1])] if whole else list(zip(snaps[:-1], snaps[1:]))
+    for (step_a, id_a, x_a, L_a, _), (step_b, id_b, x_b, L_b, _) in pairs:
+        try:
+            deps, ia, s_a, u = increment_field(id_a, x_a, L_a, id_b, x_b, L_b, G)
+        except ValueError as e:
+            raise ValueError(f"steps {step_a}-{step_b}: {e} (G = {G}): use a smaller --grid") from None
+        stats, q = increment_stats(deps, L_a, L_b, table, particles=(s_a, u))
+        hkl = (stats["mode_h"], stats["mode_k"], stats["mode_l"])
+        ratio = math.nan
+        if any(hkl):
             try:
-                deps, ia, s_a, u = increment_field(id_a, x_a, L_a, id_b, x_b, L_b, G)
+                q_slab = strain_invariants(slab_strain(id_a, x_a, L_a, id_b, x_b, L_b, hkl, K))[0]
             except ValueError as e:
-                fail(f"{path}: steps {step_a}-{step_b}: {e} (G = {G}): use a smaller --grid")
-            matched = len(ia)
-            stats, q = increment_stats(deps, L_a, L_b, table, particles=(s_a, u))
-            hkl = (stats["mode_h"], stats["mode_k"], stats["mode_l"])
-            ratio = math.nan
-            if any(hkl):
-                try:
-                    q_slab = strain_invariants(slab_strain(id_a, x_a, L_a, id_b, x_b, L_b, hkl, K))[0]
-                    ratio = bd.strain_ratio(q_slab, band_slabs(q_slab))
-                except ValueError as e:
-                    fail(f"{path}: steps {step_a}-{step_b}: {e}: use fewer --slabs")
-            stats.update(strain_ratio=ratio, band_detected=int(bool(stats["significant"]) and ratio >= bd.STRAIN_RATIO))
-            eps1 = float(np.interp(0.5 * (step_a + step_b), series["step"], series["strain"][:, 0]))
-            rows.append(dict(step_a=step_a, step_b=step_b, eps1_mid=eps1, **stats))
-            fields.append((q, 0.5 * (L_a + L_b)))
-            r = rows[-1]
-            print(f"{PROG}: {os.path.basename(path)}: steps {step_a}-{step_b}, eps1 {eps1:.4f}: deps_q macro "
-                  f"{r['deps_q_macro']:.3e}, local mean {r['deps_q_mean']:.3e}, CV {r['deps_q_cv']:.3f}, "
-                  f"top-10% {r['top10_share']:.3f}, mode ({r['mode_h']},{r['mode_k']},{r['mode_l']}) "
-                  f"{r['mode_share']:.3f} (shuffled {r['shuffled_share']:.3f}; surrogates' {bd.QUANTILE:g} quantile "
-                  f"{max(r['threshold_noise'], r['threshold_gauss']):.3f}), normal {r['normal_angle_deg']:.1f} deg "
-                  f"to axis 1, band/outside deps_q {r['strain_ratio']:.2f}: "
-                  f"{'band' if r['band_detected'] else 'no band'}", flush=True)
-            step_a, id_a, x_a, L_a = step_b, id_b, x_b, L_b
-        same = rows[-1] if (rows[-1]["step_a"], rows[-1]["step_b"]) == (first_step, step_a) else None
-        band = band_profile(f, path, series, G, K, whole=same)
+                raise ValueError(f"steps {step_a}-{step_b}: {e}: use fewer --slabs") from None
+            ratio = bd.strain_ratio(q_slab, band_slabs(q_slab))
+        stats.update(strain_ratio=ratio, band_detected=int(bool(stats["significant"]) and ratio >= bd.STRAIN_RATIO))
+        eps1 = float(np.interp(0.5 * (step_a + step_b), series["step"], series["strain"][:, 0]))
+        rows.append(dict(step_a=step_a, step_b=step_b, eps1_mid=eps1, **stats))
+        fields.append((q, 0.5 * (L_a + L_b)))
+        if log:
+            log(rows[-1])
+    same = rows[-1] if (rows[-1]["step_a"], rows[-1]["step_b"]) == (snaps[0][0], snaps[-1][0]) else None
+    try:
+        band = profile_of(snaps, series, G, K, whole=same)
+    except ValueError as e:
+        raise ValueError(f"whole test, steps {snaps[0][0]}-{snaps[-1][0]}: {e}") from None
     for r in rows:
         r["banded"] = int(band["banded"])
-    onset = bd.onset_persistence(rows)
-    print(f"{PROG}: {os.path.basename(path)}: {band_line(band)}", flush=True)
-    return dict(rows=rows, fields=fields, series=series, G=G, N=len(id_a), matched=matched, band=band, onset=onset)
+    return dict(rows=rows, fields=fields, series=series, G=G, N=len(snaps[-1][1]), matched=len(ia), band=band,
+                onset=bd.onset_persistence(rows))
 
 
 def band_summary(b):
@@ -444,8 +507,10 @@ def verdict_text(b):
     tests = (f"mode {mode_str(b['hkl'])} share {j['share']:.3f} against the surrogates' {bd.QUANTILE:g} quantile "
              f"{max(j['threshold_noise'], j['threshold_gauss']):.3f} (particle noise {j['threshold_noise']:.3f}, "
              f"correlated Gaussian {j['threshold_gauss']:.3f}, ell {j['ell'] * 1e3:.2f} mm, fraction {j['nu']:.2f}); "
-             f"band/outside deps_q {b['ratio']:.2f} (>= {bd.STRAIN_RATIO:g}); void-ratio contrast growth "
-             f"{b['growth']:+.4f} (noise {b['noise']:.4f}; >= {bd.VOID_CONTRAST:g} and {bd.NOISE_SIGMAS:g} x noise)")
+             f"band/outside deps_q {b['ratio']:.2f} (largest of the {len(b.get('ratios', []))} increments across this "
+             f"mode; whole test {b.get('ratio_whole', math.nan):.2f}; >= {bd.STRAIN_RATIO:g}); void-ratio contrast "
+             f"growth {b['growth']:+.4f} (noise {b['noise']:.4f}; >= {bd.VOID_CONTRAST:g} and {bd.NOISE_SIGMAS:g} x "
+             "noise)")
     return ("banded: " if b["banded"] else "no band: " + "; ".join(b["why"]) + ". Whole test: ") + tests
 
 
