@@ -6,7 +6,8 @@
         [--results /work/campaigns] [--only synthetic|campaigns] [--seeds 20]
 
 Writes next to this script: synthetic.csv (one row per synthetic sample), campaigns.csv (one row per campaign test),
-increments.csv (one row per snapshot increment of every campaign test), synthetic.png and campaigns.png.
+increments.csv (one row per snapshot increment of every campaign test), synthetic.png, campaigns.png and
+verdicts.md (the tables of the README, from the CSVs; --only summary rewrites it alone).
 """
 import argparse
 import csv
@@ -204,16 +205,86 @@ def plot_campaigns(rows):
     plt.close(fig)
 
 
+def read_csv(path):
+    with open(path, newline="") as fh:
+        return list(csv.DictReader(fh))
+
+
+def reasons(r):
+    """The criteria a campaign test fails, as letters: s statistic, r strain ratio, v void-ratio contrast."""
+    out = "" if int(r["significant"]) else "s"
+    out += "" if float(r["ratio"]) >= bd.STRAIN_RATIO else "r"
+    growth, noise = float(r["growth"]), float(r["noise"])
+    return out + ("" if growth >= max(bd.VOID_CONTRAST, bd.NOISE_SIGMAS * noise) else "v")
+
+
+def summary():
+    """verdicts.md from synthetic.csv and campaigns.csv: the tables the README quotes."""
+    syn_rows, camp = read_csv(os.path.join(HERE, "synthetic.csv")), read_csv(os.path.join(HERE, "campaigns.csv"))
+    out = [f"# Band detector: verdicts (written by `{CMD} --only summary`)", "",
+           "## Synthetic samples (20 per size and kind)", "",
+           "| N | grid | kind | banded (new) | statistic alone | old criterion |", "|---|---|---|---|---|---|"]
+    for n in SIZES:
+        for kind in KINDS:
+            sel = [r for r in syn_rows if int(r["n"]) == n and r["kind"] == kind]
+            out.append(f"| {n:,} | {sel[0]['grid']}^3 | {kind} | {sum(int(r['banded']) for r in sel)}/{len(sel)} | "
+                       f"{sum(int(r['significant']) for r in sel)}/{len(sel)} | "
+                       f"{sum(int(r['old_banded']) for r in sel)}/{len(sel)} |")
+    out += ["", "## Campaign tests: new verdict per test (old: every 19,436-sphere test banded, no 1,000-sphere one)",
+            "", "Cell: `band`, or `no` with the criteria failed (s: mode share not above the surrogates' 0.99 "
+            "quantile; r: band/outside deps_q below 2 in every increment; v: void-ratio contrast growth below "
+            "0.01 or 3 x noise) and the largest strain ratio.", ""]
+    for label in ("paper-fast", "paper-calibrated", "paper-reduced", "paper-calibrated-reduced"):
+        sel = [r for r in camp if r["campaign"] == label]
+        if not sel:
+            continue
+        bs = sorted({float(r["b"]) for r in sel})
+        out += [f"### {label} ({sel[0]['n']} spheres): old {sum(r['verdict_old'] == 'banded' for r in sel)}/"
+                f"{len(sel)} banded, new {sum(r['verdict_new'] == 'banded' for r in sel)}/{len(sel)}", "",
+                "| path | p0 kPa | " + " | ".join(f"b = {b:g}" for b in bs) + " |", "|---|---|" + "---|" * len(bs)]
+        for path in ("constant_p", "constant_sigma3"):
+            for p0 in sorted({float(r["p0_kPa"]) for r in sel}):
+                cells = []
+                for b in bs:
+                    r = next(x for x in sel if x["path"] == path and float(x["p0_kPa"]) == p0 and float(x["b"]) == b)
+                    why = reasons(r)
+                    cells.append("band" if r["verdict_new"] == "banded"
+                                 else f"no ({','.join(why)}; {float(r['ratio']):.2f})")
+                out.append(f"| {path} | {p0:g} | " + " | ".join(cells) + " |")
+        out.append("")
+        for b in bs:
+            g = [r for r in sel if float(r["b"]) == b]
+            nb = [r for r in g if r["verdict_new"] == "banded"]
+            n_sig = sum(int(r['significant']) for r in g)
+            ratios = [float(r["ratio"]) for r in g]
+            growths = [float(r["growth"]) for r in g]
+            line = (f"- b = {b:g}: {len(nb)}/{len(g)} banded; statistic significant {n_sig}/{len(g)}; largest strain "
+                    f"ratio {min(ratios):.2f}-{max(ratios):.2f}; void-ratio contrast growth {min(growths):+.3f} to "
+                    f"{max(growths):+.3f}")
+            if nb:
+                onset = [float(r["onset_eps1"]) for r in nb]
+                line += f"; onset (increment midpoint) eps_1 {min(onset):.3f}-{max(onset):.3f}"
+            out.append(line)
+        out.append("")
+    skipped = [r for r in camp if r["verdict_new"] == "not judged"]
+    if skipped:
+        names = ", ".join(r["campaign"] + "/" + r["test"] for r in skipped)
+        out += [f"Not judged: {names} ({skipped[0]['note']}).", ""]
+    with open(os.path.join(HERE, "verdicts.md"), "w") as fh:
+        fh.write("\n".join(out))
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--results", default="/work/campaigns", help="folder holding the campaigns' result folders")
-    ap.add_argument("--only", choices=("synthetic", "campaigns"))
+    ap.add_argument("--only", choices=("synthetic", "campaigns", "summary"))
     ap.add_argument("--seeds", type=int, default=20, help="synthetic samples per size and kind")
     a = ap.parse_args(argv)
-    if a.only != "campaigns":
+    if a.only in (None, "synthetic"):
         plot_synthetic(synthetic(a.seeds))
-    if a.only != "synthetic":
+    if a.only in (None, "campaigns"):
         plot_campaigns(campaigns(a.results))
+    summary()
     return 0
 
 

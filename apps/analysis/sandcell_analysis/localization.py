@@ -23,14 +23,25 @@ many; ~1 % of axial strain apart suits the method) and, for each pair of consecu
      vector, so it shows as power of the local deps_q field (mean removed) concentrated in one low
      Fourier mode (h, k, l) in [-2, 2]^3, +-(h, k, l) one mode. The strongest mode's share of the
      variance (Parseval) is given next to the same share of the bins randomly permuted (mean of 20
-     permutations, fixed seed): the share a field of noise would reach. The band normal is
-     n ~ (h/L_1, k/L_2, l/L_3); its angle to axis 1 (the most compressed) is reported.
+     permutations, fixed seed; the criterion before issue 45, a spatially white null, kept for
+     comparison). The band normal is n ~ (h/L_1, k/L_2, l/L_3); its angle to axis 1 (the most
+     compressed) is reported.
+  5. the band detector's test of the increment (band_detector.py): the share against the 0.99
+     quantile of 200 homogeneous surrogates of each of two kinds at the same grid (particle noise;
+     particle noise plus a correlated Gaussian displacement field of the covariance length fitted to
+     the test's own bin means): threshold_noise, threshold_gauss, corr_length (m), corr_fraction,
+     significant; and across that mode's slabs the band/outside deps_q (strain_ratio). The increment
+     detects a band (band_detected) when significant and strain_ratio >= 2. Onset: the first such
+     increment; persistent when >= 50 % of the later ones detect it again in the same mode.
 The sampling of ~40 particles a bin leaves a noise floor in the local field: the CV and the mean
-local deps_q include it, the shuffled share measures it.
+local deps_q include it, the surrogates of kind (a) measure it.
 
-Band profile (whatever --whole says): is the band denser or looser than the rest? The strongest mode
-(h, k, l) of the whole-test increment (first snapshot to last) is the file's band if its share is
-above 3 times the shuffled one (else "no band", and no profile). xi = frac(h s_1 + k s_2 + l s_3) is
+Band profile and verdict (whatever --whole says): is there a band, and is it denser or looser than the
+rest? The strongest mode (h, k, l) of the whole-test increment (first snapshot to last) is the file's
+candidate. The file is banded (the `banded` column, the same in every row) when its share is above the
+surrogates' 0.99 quantile, the band/outside deps_q across it is >= 2 in at least one snapshot increment,
+and the band's void ratio minus the outside's grows from the first snapshot to the last by >= 0.01 and
+>= 3 times its noise (band_detector.py says why these numbers). xi = frac(h s_1 + k s_2 + l s_3) is
 kept by the cell's affine deformation, so K slabs of equal xi width (--slabs, default 10) are material
 slabs but for the non-affine motion, each V_cell / K of the cell at every snapshot; they lie across
 the band, spacing d = 1 / |n| between the mode's planes, d / K thick.
@@ -43,9 +54,10 @@ the band, spacing d = 1 / |n| between the mode's planes, d / K thick.
     n^T)); its deps_q locates the band: the slabs above the mean by more than half the way to the
     largest. The rest is "outside".
 Its outputs: <stem>-localization-band.csv (one row per snapshot: step, eps_1, e of the band slabs
-together, of the outside, of all slabs, which is the series' e = V_cell / V_s - 1, and of each slab),
-a "Band profile" section in the summary and a third column in the figure (deps_q and deps_v per slab;
-e per slab at the first, middle and last snapshot), and one printed line.
+together, of the outside, of all slabs, which is the series' e = V_cell / V_s - 1, and of each slab;
+written only when the file is banded), a "Band profile" section in the summary (the verdict and the
+candidate's profile) and a third column in the figure (deps_q and deps_v per slab; e per slab at the
+first, middle and last snapshot), and one printed line.
 
 Writes, into --out (default: next to each input), <stem>-localization.csv (one row per increment),
 <stem>-localization.md (summary) and <stem>-localization.png: the statistics against eps_1 over q/p
