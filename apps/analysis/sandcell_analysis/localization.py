@@ -484,7 +484,7 @@ def judge_test(snaps, series, G, K=SLABS, whole=False, log=None):
     for r in rows:
         r["banded"] = int(band["banded"])
     return dict(rows=rows, fields=fields, series=series, G=G, N=len(snaps[-1][1]), matched=len(ia), band=band,
-                onset=bd.onset_persistence(rows))
+                onset=bd.onset_persistence(rows), whole=whole)
 
 
 def band_summary(b):

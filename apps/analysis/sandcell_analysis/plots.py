@@ -331,9 +331,9 @@ def draw_band(ax_q, ax_e, b):
     ax_q.set_ylabel("local strain, whole test")
     j = b["judged"]
     ax_q.set_title(f"{'BANDED' if b['banded'] else 'no band (candidate mode)'}: mode {loc.mode_str(b['hkl'])} share "
-                   f"{b['share']:.2f}, surrogates {max(j['threshold_noise'], j['threshold_gauss']):.2f}; band/outside "
-                   f"deps_q {b['ratio']:.2f}, e contrast {b['growth']:+.3f}\n{K} slabs of equal xi; band slabs shaded",
-                   fontsize=8)
+                   f"{b['share']:.2f} (surrogates {max(j['threshold_noise'], j['threshold_gauss']):.2f})\nband/outside "
+                   f"deps_q {b['ratio']:.2f} (>= 2), e contrast growth {b['growth']:+.3f} (noise {b['noise']:.3f})\n"
+                   f"{K} slabs of equal xi; band slabs shaded", fontsize=8)
     ax_q.legend(fontsize=7)
     picks = sorted({0, len(rows) // 2, len(rows) - 1})
     for c, k in enumerate(picks):
@@ -394,7 +394,8 @@ def localization_figure(path, src, res, best):
     draw_band(axs[0, 2], axs[1, 2], res["band"])
     fig.suptitle(f"local strain increments of {os.path.basename(src)} ({res['G']}^3 bins): "
                  f"{'banded' if res['band']['banded'] else 'no band'}. "
-                 f"Reproduce: triaxial localization {os.path.basename(src)}", fontsize=10)
+                 f"Reproduce: triaxial localization {'--whole ' if res.get('whole') else ''}{os.path.basename(src)}",
+                 fontsize=10)
     fig.tight_layout()
     loc.write_atomic(path, lambda tmp: fig.savefig(tmp, format="png", dpi=110))
     plt.close(fig)
