@@ -599,7 +599,11 @@ def onset_section(res):
                      f"{r['mode_l']}) | {r['mode_share']:.3f} | {r['threshold_noise']:.3f} / "
                      f"{r['threshold_gauss']:.3f} | {r['corr_length'] * 1e3:.2f} | {r['strain_ratio']:.2f} | "
                      f"{'yes' if r['band_detected'] else 'no'} |")
-    if k0 is None:
+    if res.get("whole"):
+        lines += ["", "--whole: one increment, the whole test (the file's verdict, below, takes the strain criterion "
+                  "from the snapshot increments); the onset and persistence need those increments: run without "
+                  "--whole."]
+    elif k0 is None:
         lines += ["", "Onset: none (no increment detects a band)."]
     else:
         r = rows[k0]
