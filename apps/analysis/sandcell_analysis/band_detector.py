@@ -30,7 +30,8 @@ A field is judged twice, and called banded only when both say so.
        means (void_contrast; the slabs are material slabs, so the packing's scatter at the first snapshot stays
        in them and cancels in the growth).
 
-The constants were fixed before the detector was run on any campaign file:
+The constants were fixed before the detector was run on any campaign file (the parts of the method changed
+after that, the constants kept, are listed in experiments/2026-11-28-band-detector/README.md):
   QUANTILE = 0.99: a 1 % false-positive rate for the statistic alone, per field judged.
   STRAIN_RATIO = 2: a shear band is where the shear concentrates; in a band the strain is several times the
     outside's, while a diffuse field's slabs (each a tenth of the cell, averaged over its planes) differ by
@@ -57,7 +58,6 @@ PERSISTENCE = 0.5
 SEED = 4501             # the surrogates' seed (fixed: a rerun gives the same thresholds)
 ELLS = 40               # correlation lengths tried, log-spaced from ELL_RANGE[0] min(L) to ELL_RANGE[1] max(L)
 ELL_RANGE = (0.01, 2.0)
-NUS = np.linspace(0.0, 1.0, 41)  # correlated fractions tried
 
 
 def mode_family(hkl, G):
@@ -127,7 +127,8 @@ def fit_correlation(s_a, u, L, G, exclude):
     var = within.sum(axis=0) / max(len(u) - G ** 3, 1)  # pooled within-bin variance per component
     sigma_bin = np.sqrt(var[None, :] / count[:, None])
     power = sum(np.abs(np.fft.fftn((mean[:, c] - mean[:, c].mean()).reshape(G, G, G))).ravel() ** 2 for c in range(3))
-    white = G ** 3 * float((sigma_bin ** 2).mean(axis=0).sum())  # E|fft|^2 of the noise, summed over components
+    # E|fft|^2 of the noise, summed over components (a floor for displacements without scatter in their bins)
+    white = max(G ** 3 * float((sigma_bin ** 2).mean(axis=0).sum()), 1e-300)
     keep = np.ones(G ** 3, bool)
     keep[0] = False
     keep[exclude] = False
