@@ -173,7 +173,8 @@ def run_settings(run):
     with open(os.path.join(run, ".config.toml"), "rb") as f:
         shear = tomllib.load(f).get("shear", {})
     return {"window": shear.get("critical_window", W), "tol_eta": shear.get("critical_tolerance", 0.02),
-            "tol_e": shear.get("critical_tolerance_e", 0.005), "tol_fabric": shear.get("critical_tolerance_fabric", 0.05)}
+            "tol_e": shear.get("critical_tolerance_e", 0.005),
+            "tol_fabric": shear.get("critical_tolerance_fabric", 0.05)}
 
 
 @needs_twin
