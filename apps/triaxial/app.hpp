@@ -85,6 +85,11 @@ struct Interrupted : std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
+// prepare.target_e0 outside the e0 range the preparation reaches: bad input (exit 2), found by trials.
+struct UnreachableTarget : std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
+
 // A job whose lock another process holds (the same --task run twice): bad input, not a failed test.
 struct InUse : std::runtime_error {
   using std::runtime_error::runtime_error;
@@ -208,6 +213,8 @@ class Runner {
   void shear(const TestSpec& test, Summary& summary);
 
  private:
+  /// prepare.target_e0: the search for the preparation's friction (prepare_run.cpp).
+  bool prepare_to_target(double p0, Summary& summary, const fs::path& sample);
   const Plan& plan_;
   Log& log_;
   bool single_job() const { return plan_.config.parallel == 1; }

@@ -79,8 +79,9 @@ class Campaign {
   /// (other tasks' finished samples and tests), merged under a lock.
   void write_indices();
   int failures() const { return failures_; }
-  /// 0 done, 1 a job failed, 2 a job in use by another process, 3 stopped (a signal or --stop-after).
-  int exit_code() const { return failures_ ? 1 : in_use_ ? 2 : interrupted_ ? 3 : 0; }
+  /// 0 done, 1 a job failed, 2 a job in use by another process or a target the preparation cannot
+  /// reach (prepare.target_e0), 3 stopped (a signal or --stop-after).
+  int exit_code() const { return unreachable_ ? 2 : failures_ ? 1 : in_use_ ? 2 : interrupted_ ? 3 : 0; }
 
  private:
   void failed(const std::string& what, const std::exception& e);
@@ -94,7 +95,7 @@ class Campaign {
   Runner runner_;
   std::vector<Summary> prep_, tests_;
   std::vector<char> prepared_;
-  int failures_ = 0, interrupted_ = 0, in_use_ = 0;
+  int failures_ = 0, interrupted_ = 0, in_use_ = 0, unreachable_ = 0;
   std::mutex failure_mutex_;
 };
 
@@ -111,6 +112,7 @@ void Campaign::failed(const std::string& what, const std::exception& e) {
     log_.line("triaxial: " + std::string(e.what()));
     return;
   }
+  if (dynamic_cast<const UnreachableTarget*>(&e)) ++unreachable_;
   ++failures_;
   log_.line("triaxial: " + what + ": " + e.what());
 }

@@ -10,7 +10,9 @@
 #include "systems/catalogue.hpp"
 #include "systems/homogenizer.hpp"
 
+#include <algorithm>
 #include <cmath>
+#include <fstream>
 #include <optional>
 
 namespace sandcell::triaxial {
@@ -224,6 +226,7 @@ void PrepareRun::finish(const fs::path& sample) {
   extra.doubles["Z_mech"] = {m_.z_mech};
   extra.doubles["unbalanced"] = {m_.unbalanced};
   extra.doubles["p"] = {m_.inv.p};
+  extra.doubles["prepare_friction"] = {pc_.friction};  // the one prepare.target_e0 found, or as set
   extra.strings["config"] = plan_.config.text;
   save(sample, st, extra, timer_);
   std::error_code ignore;
@@ -242,6 +245,120 @@ void PrepareRun::finish(const fs::path& sample) {
             num(summary_.wall, "%.1f") + " s");
 }
 
+namespace {
+
+// One preparation of the target_e0 search: its friction, its spheres and the e0 it reached.
+struct Trial {
+  double friction = 0.0;
+  std::size_t count = 0;
+  double e0 = 0.0;
+  fs::path sample;  // its sample file
+};
+
+}  // namespace
+
+// prepare.target_e0: the preparation's friction f that gives e0 = target at p0. e0 grows with f (a
+// frictional cloud jams looser), so the search brackets the target between f = 0 (the densest
+// e0 this compression reaches) and f = prepare.max_friction (the loosest), and narrows the bracket by
+// regula falsi (the Illinois variant: the retained end's weight halved, so it never stalls) on
+// trial preparations of prepare.trial_count spheres (the sample's own spheres when it has no more),
+// until a trial lands within half the tolerance. A sample larger than its trials is then prepared
+// at that friction; if its e0 misses the tolerance (a larger cell's e0 differs from a trial's by a
+// few 1e-3), up to three secant steps at full size follow, along the trials' slope de0/df. The trials
+// (directory target_e0-<p0>/, and target_e0-<p0>.csv: friction, spheres, e0) stay as the record.
+// A target outside the range the two ends reach (by more than the tolerance) throws
+// UnreachableTarget naming the key and the range: bad input, exit 2.
+bool Runner::prepare_to_target(double p0, Summary& summary, const fs::path& sample) {
+  const PrepareConfig& pc = plan_.config.prepare;
+  const double target = pc.target_for(p0, plan_.p0), tol = pc.target_tolerance;
+  const std::size_t count = plan_.from_file ? plan_.packing.radius.size() : plan_.config.sample.generation.count;
+  const std::size_t trial_count = plan_.from_file ? count : std::min<std::size_t>(count, pc.trial_count);
+  const std::string tag = p0_tag(p0);
+  const fs::path dir = plan_.out / ("target_e0-" + tag);
+  fs::create_directories(dir);
+  std::vector<Trial> trials;
+  const auto run_trial = [&](double friction, std::size_t n) -> Trial {
+    Config c = plan_.config;
+    c.prepare.friction = friction;
+    c.prepare.target_e0.clear();
+    if (!plan_.from_file) c.sample.generation.count = n;
+    Options o = plan_.options;
+    o.resume = false;
+    Plan trial = make_plan(c, o);
+    trial.out = dir;
+    trial.prepare_threads = plan_.prepare_threads;
+    trial.partition = plan_.partition;
+    Summary s;
+    s.name = "trial-" + std::to_string(trials.size());
+    PrepareRun run(trial, log_, p0, s);
+    run.open(*this);
+    run.run();
+    const fs::path file = dir / (s.name + ".sample.h5");
+    run.finish(file);
+    trials.push_back({friction, n, s.e0, file});
+    log_.line("prepare-" + tag + ": target e0 = " + num(target, "%.4f") + ": trial " + std::to_string(trials.size() - 1) +
+              ", friction " + num(friction, "%.5f") + ", " + std::to_string(n) + " spheres: e0 = " +
+              num(s.e0, "%.4f"));
+    std::ofstream csv(plan_.out / ("target_e0-" + tag + ".csv"));
+    csv << "trial,friction,spheres,e0,target\n";
+    for (std::size_t k = 0; k < trials.size(); ++k)
+      csv << k << ',' << num(trials[k].friction, "%.17g") << ',' << trials[k].count << ','
+          << num(trials[k].e0, "%.17g") << ',' << num(target, "%.17g") << '\n';
+    return trials.back();
+  };
+  Trial lo = run_trial(0.0, trial_count), hi = run_trial(pc.max_friction, trial_count);
+  if (target < lo.e0 - tol || target > hi.e0 + tol || !(hi.e0 > lo.e0))
+    throw UnreachableTarget("prepare.target_e0 = " + num(target) + " at p0 = " + num(p0 / 1e6) +
+                            " MPa: outside the reachable range e0 = " + num(lo.e0, "%.4f") + " .. " +
+                            num(hi.e0, "%.4f") + " (prepare.friction 0 .. prepare.max_friction = " +
+                            num(pc.max_friction) + ", " + std::to_string(trial_count) +
+                            "-sphere trials in " + dir.string() + "); allowed: a target in that range, or a larger "
+                            "prepare.max_friction (or prepare.rolling_friction) for looser samples");
+  // Regula falsi (Illinois) on g(f) = e0(f) - target.
+  Trial best = std::abs(lo.e0 - target) <= std::abs(hi.e0 - target) ? lo : hi;
+  double wlo = 1.0, whi = 1.0;  // Illinois weights of the two ends
+  int side = 0;                 // which end the last step replaced (-1 lo, +1 hi)
+  for (int k = 0; k < 12 && std::abs(best.e0 - target) > 0.5 * tol && hi.friction - lo.friction > 1e-4; ++k) {
+    const double glo = wlo * (lo.e0 - target), ghi = whi * (hi.e0 - target);
+    double f = (lo.friction * ghi - hi.friction * glo) / (ghi - glo);
+    f = std::clamp(f, lo.friction + 0.02 * (hi.friction - lo.friction), hi.friction - 0.02 * (hi.friction - lo.friction));
+    const Trial t = run_trial(f, trial_count);
+    if (std::abs(t.e0 - target) < std::abs(best.e0 - target)) best = t;
+    if (t.e0 < target) {
+      lo = t;
+      wlo = 1.0;
+      if (side == -1) whi *= 0.5;
+      side = -1;
+    } else {
+      hi = t;
+      whi = 1.0;
+      if (side == +1) wlo *= 0.5;
+      side = +1;
+    }
+  }
+  const double slope = (hi.e0 - lo.e0) / (hi.friction - lo.friction);  // de0/df over the last bracket
+  // Full size: the best trial's friction, then secant steps along the trials' slope.
+  for (int k = 0; k < 4 && best.count < count; ++k) {
+    const double f = k == 0 ? best.friction : std::clamp(trials.back().friction + (target - trials.back().e0) / slope,
+                                                         0.0, pc.max_friction);
+    const Trial t = run_trial(f, count);
+    if (std::abs(t.e0 - target) <= tol) best = t;
+    if (best.count == count) break;
+  }
+  if (best.count < count || std::abs(best.e0 - target) > tol)
+    throw SimulationError("prepare-" + tag + ": prepare.target_e0 = " + num(target) + " not reached within " +
+                          num(tol) + " after " + std::to_string(trials.size()) + " preparations (closest e0 = " +
+                          num(best.e0, "%.4f") + "; trials in " + (plan_.out / ("target_e0-" + tag + ".csv")).string() +
+                          "); allowed: a larger prepare.target_e0_tolerance or prepare.trial_count");
+  fs::copy_file(best.sample, sample, fs::copy_options::overwrite_existing);
+  summary = sample_summary(p0);
+  summary.status = "done";
+  log_.line("prepare-" + tag + ": target e0 = " + num(target, "%.4f") + " reached: e0 = " + num(best.e0, "%.4f") +
+            " at prepare.friction = " + num(best.friction, "%.5f") + " (" + std::to_string(trials.size()) +
+            " preparations)");
+  return true;
+}
+
 bool Runner::prepare(double p0, Summary& summary) {
   const std::string tag = p0_tag(p0);
   summary.name = "prepare-" + tag;
@@ -253,6 +370,7 @@ bool Runner::prepare(double p0, Summary& summary) {
     summary = sample_summary(p0);
     return true;
   }
+  if (!plan_.config.prepare.target_e0.empty()) return prepare_to_target(p0, summary, sample);
   PrepareRun run(plan_, log_, p0, summary);
   run.open(*this);
   run.run();

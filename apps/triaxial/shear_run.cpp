@@ -21,15 +21,19 @@ namespace sandcell::triaxial {
 // The series rows of the test, for the critical-state test (critical.hpp) and the peak.
 struct History {
   std::vector<double> eps1, p, q, e;
+  std::vector<double> eps_q, z_mech, fabric;  // fabric: its anisotropy F_a (critical.hpp)
   CriticalCheck critical(const ShearConfig& h) const {
-    return check_critical(
-        eps1, p, q, e,
-        CriticalTest{
-            .window = h.critical_window, .tolerance = h.critical_tolerance, .tolerance_e = h.critical_tolerance_e});
+    return check_critical(CriticalSeries{eps_q, p, q, e, z_mech, fabric},
+                          CriticalTest{.window = h.critical_window,
+                                       .tolerance = h.critical_tolerance,
+                                       .tolerance_e = h.critical_tolerance_e,
+                                       .tolerance_fabric = h.critical_tolerance_fabric});
   }
   CheckpointExtra save() const {
     CheckpointExtra x;
-    x.doubles = {{"history_eps1", eps1}, {"history_p", p}, {"history_q", q}, {"history_e", e}};
+    x.doubles = {{"history_eps1", eps1},     {"history_p", p},           {"history_q", q},
+                 {"history_e", e},           {"history_eps_q", eps_q},   {"history_z_mech", z_mech},
+                 {"history_fabric_anisotropy", fabric}};
     return x;
   }
   void load(CheckpointExtra& x) {
@@ -37,6 +41,11 @@ struct History {
     p = x.doubles["history_p"];
     q = x.doubles["history_q"];
     e = x.doubles["history_e"];
+    // A checkpoint from before these columns: NaN rows, which no critical-state window accepts, so
+    // a resumed test is judged on rows it has measured since.
+    for (auto [name, v] : {std::pair{"history_eps_q", &eps_q}, std::pair{"history_z_mech", &z_mech},
+                           std::pair{"history_fabric_anisotropy", &fabric}})
+      *v = x.doubles.count(name) ? x.doubles[name] : std::vector<double>(eps1.size(), std::nan(""));
   }
 };
 
@@ -268,6 +277,9 @@ void ShearRun::row() {
   history_.p.push_back(m_.inv.p);
   history_.q.push_back(m_.inv.q);
   history_.e.push_back(m_.void_ratio);
+  history_.eps_q.push_back(m_.eps_q);
+  history_.z_mech.push_back(m_.z_mech);
+  history_.fabric.push_back(fabric_anisotropy(m_.fabric));
   if (++rows_ % o_.flush_interval == 0) results_->flush();
 }
 
@@ -319,10 +331,12 @@ void ShearRun::run() {
 void ShearRun::check_critical(double eps1) {
   if (const CriticalCheck c = history_.critical(h_); c.reached) {
     summary_.critical = true;
-    log_.line(test_.name + ": critical state at eps1 = " + num(100.0 * eps1, "%.2f") + " %: over the last " +
-              num(100.0 * h_.critical_window, "%g") + " % (" + std::to_string(c.rows) +
-              " rows) the fitted lines change eta by " + num(100.0 * c.change_eta, "%.2f") + " %, p by " +
-              num(100.0 * c.change_p, "%.2f") + " %, e by " + num(c.change_e, "%.4f"));
+    const auto pc = [](const Trend& t) { return num(100.0 * t.change, "%.2f") + " +- " + num(100.0 * t.se, "%.2f") + " %"; };
+    log_.line(test_.name + ": critical state at eps1 = " + num(100.0 * eps1, "%.2f") + " %, eps_q = " +
+              num(100.0 * history_.eps_q.back(), "%.2f") + " %: over the last " + num(100.0 * h_.critical_window, "%g") +
+              " % of eps_q (" + std::to_string(c.rows) + " rows) the fitted lines change eta by " + pc(c.eta) +
+              ", p by " + pc(c.p) + ", Z_mech by " + pc(c.z) + ", F_a by " + pc(c.fabric) + ", e by " +
+              num(c.e.change, "%.4f") + " +- " + num(c.e.se, "%.4f") + " (1 SE)");
   }
 }
 

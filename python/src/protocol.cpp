@@ -97,6 +97,7 @@ void bind_protocol(py::module_& m) {
             const ShearConfig& c = p.config.shear;
             py::dict d;
             d["max_axial_strain"] = c.max_axial_strain;
+            d["max_deviatoric_strain"] = c.max_deviatoric_strain;
             d["ramp_strain"] = c.ramp_strain;
             d["stop_at_critical"] = c.stop_at_critical;
             d["steps"] = c.steps;

@@ -1,20 +1,22 @@
-"""The critical-state test, Python (sandcell_analysis.critical) against its C++ twin
+"""The critical-state test, Python (sandcell_analysis.critical, version 2) against its C++ twin
 (apps/triaxial/protocol/critical.cpp, what the app applies while shearing with shear.stop_at_critical): on
-the same series they must give the same verdict, the same rows in the window, the same changes over
-it, and the same first row at which the test holds when it is applied after every row (the app's
-stop).
+the same series they must give the same verdict, the same rows in the window, the same changes and
+standard errors over it, and the same first row at which the test holds when it is applied after
+every row (the app's stop).
 
 The C++ side is tests/analysis/critical_twin.cpp, found through $SANDCELL_CRITICAL_TWIN (set by
 ctest, analysis.critical_twin). Series: synthetic ones (stationary with fluctuations, drifts of
-each quantity beyond the tolerance, short tests, sparse and gapped windows, a test that settles
-midway) and, with $SANDCELL_TWIN_RESULTS naming run folders (separated by ':'; ctest: the small
-campaign of analysis.campaign_run and the stop_at_critical one of analysis.campaign_stop_run), the
-shear tests of those runs; where a run's index.csv says a test stopped at the critical state, both
-must put that stop at the file's last row.
+each quantity beyond the tolerance, a drift the noise leaves unproven, short tests, sparse and
+gapped windows, tests that settle midway) and, with $SANDCELL_TWIN_RESULTS naming run folders
+(separated by ':'; ctest: the small campaign of analysis.campaign_run and the stop_at_critical one of
+analysis.campaign_stop_run), the shear tests of those runs with each run's own tolerances; where a
+run's index.csv says a test stopped at the critical state, both must put that stop at the file's last
+row.
 """
 import math
 import os
 import subprocess
+import tomllib
 
 import numpy as np
 import pytest
@@ -24,100 +26,124 @@ from sandcell_analysis import critical, results
 TWIN = os.environ.get("SANDCELL_CRITICAL_TWIN")
 RUNS = [d for d in os.environ.get("SANDCELL_TWIN_RESULTS", "").split(os.pathsep) if d]
 W, PRE = critical.APP_CRITERION["window"], critical.APP_CRITERION["pre_strain"]
+KEYS = (("eta", "eta"), ("p", "p"), ("e", "e"), ("Z_mech", "z"), ("F_a", "fabric"))
 
 
-def make(d_eta=0.0, d_p=0.0, d_e=0.0, noise=(0.0, 0.0, 0.0), end=0.3, step=0.0005):
+def make(d_eta=0.0, d_p=0.0, d_e=0.0, d_z=0.0, d_fa=0.0, noise=(0.0, 0.0, 0.0), end=0.6, step=0.0005):
     """As tests/apps/test_critical.cpp: eta = M (1 + d_eta u + n_q sin 1.7k), p = p0 (1 + d_p u +
-    n_p sin(2.3k + 1)), e = e0 + d_e u + n_e sin(3.1k + 2), u = (eps1 - end) / W: d_* is the drift
-    over the last window."""
+    n_p sin(2.3k + 1)), e = e0 + d_e u + n_e sin(3.1k + 2), Z = Z0 (1 + d_z u), F_a = F0 (1 + d_fa u),
+    u = (eps_q - end) / W: d_* is the drift over the last window."""
     k = np.arange(int(round(end / step)) + 1)
-    eps1 = step * k
-    u = (eps1 - end) / W
+    x = step * k
+    u = (x - end) / W
     eta = 0.93 * (1.0 + d_eta * u + noise[0] * np.sin(1.7 * k))
     p = 0.5e6 * (1.0 + d_p * u + noise[1] * np.sin(2.3 * k + 1.0))
     e = 0.74 + d_e * u + noise[2] * np.sin(3.1 * k + 2.0)
-    return eps1, p, eta * p, e
+    return x, p, eta * p, e, 4.1 * (1.0 + d_z * u), 0.45 * (1.0 + d_fa * u)
 
 
 def settling(rng):
-    """A dense test: a peak of eta, then softening and dilation that settle exponentially, with
-    DEM-like noise; it becomes critical part-way."""
-    eps1 = np.linspace(0.0, 0.3, 601)
-    eta = 0.95 * (1.0 + 0.4 * np.exp(-eps1 / 0.04) * (1.0 - np.exp(-eps1 / 0.004)))
-    eta = eta * (1.0 + rng.normal(0.0, 0.02, eps1.size))
-    p = 0.5e6 * (1.0 + rng.normal(0.0, 0.005, eps1.size))
-    e = 0.74 - 0.12 * np.exp(-eps1 / 0.05) + rng.normal(0.0, 5e-4, eps1.size)
-    return eps1, p, eta * p, e
+    """A dense test: a peak of eta, then softening, dilation, contacts and fabric that settle
+    exponentially, with DEM-like noise; it becomes critical part-way."""
+    x = np.linspace(0.0, 0.6, 1201)
+    eta = 0.95 * (1.0 + 0.4 * np.exp(-x / 0.06) * (1.0 - np.exp(-x / 0.004)))
+    eta = eta * (1.0 + rng.normal(0.0, 0.02, x.size))
+    p = 0.5e6 * (1.0 + rng.normal(0.0, 0.005, x.size))
+    e = 0.74 - 0.12 * np.exp(-x / 0.07) + rng.normal(0.0, 5e-4, x.size)
+    z = 4.1 * (1.0 + 0.5 * np.exp(-x / 0.05)) * (1.0 + rng.normal(0.0, 0.003, x.size))
+    fa = 0.45 * (1.0 - 0.6 * np.exp(-x / 0.06)) * (1.0 + rng.normal(0.0, 0.01, x.size))
+    return x, p, eta * p, e, z, fa
 
 
 def synthetic():
     rng = np.random.default_rng(2026)
+    noise = (0.04, 0.005, 0.001)
     out = {
-        "straight drifts inside the tolerances": make(0.015, -0.01, 0.003),
-        "stationary, q fluctuating 8 %": make(noise=(0.04, 0.01, 0.002)),
-        "eta drifting 3 %": make(d_eta=0.03, noise=(0.04, 0.01, 0.002)),
-        "p drifting 3 %": make(d_p=0.03, noise=(0.01, 0.01, 0.0)),
-        "e drifting 0.008": make(d_e=0.008, noise=(0.01, 0.0, 0.002)),
-        "ended at 8 %": make(end=0.08),
-        "sparse: 6 rows in the window": make(step=0.01),
+        "straight drifts inside the tolerances": make(0.015, -0.01, 0.003, 0.01, 0.03),
+        "stationary, q fluctuating 8 %": make(noise=noise),
+        "eta drifting 3 %": make(d_eta=0.03, noise=noise),
+        "p drifting 3 %": make(d_p=0.03, noise=noise),
+        "e drifting 0.008": make(d_e=0.008, noise=noise),
+        "Z_mech drifting 3 %": make(d_z=0.03, noise=noise),
+        "F_a drifting 8 %": make(d_fa=0.08, noise=noise),
+        "eta drifting 1.5 % in noise of 16 %": make(d_eta=0.015, noise=(0.08, 0.005, 0.001)),
+        "ended at eps_q 25 %": make(end=0.25),
+        "sparse: 5 rows in the window": make(step=0.02),
     }
-    eps1, p, q, e = make()
-    keep = (eps1 < 0.2499) | (eps1 > 0.265)  # the window's first 30 % missing: covered < 90 %
-    out["gap in the window"] = tuple(a[keep] for a in (eps1, p, q, e))
-    eps1, p, q, e = make()
-    keep = (eps1 < 0.26) | (eps1 > 0.27)  # a gap, but the window still covered: accepted
-    out["gap, window still covered"] = tuple(a[keep] for a in (eps1, p, q, e))
-    for k in range(6):
+    full = make()
+    keep = (full[0] < 0.4999) | (full[0] > 0.53)  # the window's first 30 % missing: covered < 90 %
+    out["gap in the window"] = tuple(a[keep] for a in full)
+    keep = (full[0] < 0.52) | (full[0] > 0.54)  # a gap, but the window still covered: accepted
+    out["gap, window still covered"] = tuple(a[keep] for a in full)
+    for k in range(4):
         out[f"settling test {k}"] = settling(rng)
     return out
 
 
-def run_twin(series, tmp_path):
-    """The C++ twin's (reached, rows, change_eta, change_p, change_e, first_row) per series."""
+def run_twin(series, tmp_path, settings=None):
+    """The C++ twin's (reached, rows, {quantity: (change, se)}, first_row) per series."""
     path = tmp_path / "series.csv"
     with open(path, "w") as f:
-        f.write("series,eps1,p,q,e\n")
-        for i, (eps1, p, q, e) in enumerate(series.values()):
-            for row in zip(eps1, p, q, e):
+        f.write("series,eps_q,p,q,e,z_mech,fabric_anisotropy\n")
+        for i, s in enumerate(series.values()):
+            for row in zip(*s):
                 f.write(f"{i}," + ",".join(repr(float(v)) for v in row) + "\n")  # repr: exact round trip
-    proc = subprocess.run([TWIN, str(path)], capture_output=True, text=True, timeout=300)
+    args = [TWIN, str(path)] + ([repr(float(settings[k])) for k in ("window", "tol_eta", "tol_e", "tol_fabric")]
+                                if settings else [])
+    proc = subprocess.run(args, capture_output=True, text=True, timeout=600)
     assert proc.returncode == 0, proc.stderr
     out = {}
     for line in proc.stdout.split("\n"):
         if line.strip():
-            i, reached, rows, ce, cp, cv, first = line.split()
-            out[int(i)] = (reached == "1", int(rows), float(ce), float(cp), float(cv), int(first) or None)
+            f = line.split()
+            trends = {k: (float(f[3 + 2 * j]), float(f[4 + 2 * j])) for j, (k, _) in enumerate(KEYS)}
+            out[int(f[0])] = (f[1] == "1", int(f[2]), trends, int(f[13]) or None)
     return [out[i] for i in range(len(series))]
 
 
-def python_side(eps1, p, q, e):
-    cols = {"p": p, "q": q, "eta": q / p, "e": e}  # the app's eta is q/p of its rows
-    r = critical.detect_critical(eps1, cols, **critical.APP_CRITERION)
-    return r, critical.first_critical_row(eps1, cols)
+def criterion(settings):
+    """detect_critical's keywords for the app's settings (one tolerance for eta, p and Z_mech)."""
+    kw = dict(critical.APP_CRITERION)
+    if settings:
+        kw.update(window=settings["window"], tol_eta=settings["tol_eta"], tol_p=settings["tol_eta"],
+                  tol_z=settings["tol_eta"], tol_e=settings["tol_e"], tol_fabric=settings["tol_fabric"])
+    return kw
 
 
-def covered(eps1):
-    """The window tests of the app (length, rows, coverage): passed, the changes are computed."""
-    end = eps1[-1]
-    sel = eps1 >= end - W
-    return end >= W + PRE and sel.sum() >= 10 and eps1[-1] - eps1[sel][0] >= 0.9 * W
+def python_side(s, settings=None):
+    x, p, q, e, z, fa = s
+    cols = {"p": p, "q": q, "eta": q / p, "e": e, "Z_mech": z, "F_a": fa}  # the app's eta is q/p of its rows
+    kw = criterion(settings)
+    return critical.detect_critical(x, cols, **kw), critical.first_critical_row(x, cols, **kw)
 
 
-def assert_agree(name, series, twin):
-    eps1, p, q, e = series
-    r, first = python_side(eps1, p, q, e)
-    reached, rows, ce, cp, cv, first_cpp = twin
+def covered(x, window):
+    """The window tests of the app (length, rows, coverage): passed, the trends are computed."""
+    end = x[-1]
+    sel = x >= end - window
+    return end >= window + PRE and sel.sum() >= 10 and x[-1] - x[sel][0] >= 0.9 * window
+
+
+def assert_agree(name, s, twin, settings=None):
+    r, first = python_side(s, settings)
+    reached, rows, trends, first_cpp = twin
     assert r["reached"] == reached, f"{name}: Python {r['reached']} ({r['reasons']}), C++ {reached}"
     assert r["rows"] == rows, f"{name}: rows in the window, Python {r['rows']}, C++ {rows}"
     assert first == first_cpp, f"{name}: first critical row, Python {first}, C++ {first_cpp}"
-    if covered(eps1):
-        # Both are the least-squares slope of the same doubles (numpy's lstsq against centred sums):
-        # they differ by round-off, ~1e-13 relative for windows of 10-1000 rows at eps1 ~ 0.3; 1e-9
-        # relative leaves room for that and is far below what another window or formula would
-        # change (one row more or less moves a change by ~1e-3 relative).
-        for key, cpp in (("eta", ce), ("p", cp), ("e", cv)):
-            py = r["checks"][key]["measure"]
-            assert math.isclose(py, cpp, rel_tol=1e-9, abs_tol=1e-15), f"{name}: change of {key} {py} vs {cpp}"
+    if covered(s[0], criterion(settings)["window"]):
+        # Both are least-squares slopes, residual sums and lag products of the same doubles, summed
+        # in another order: they differ by round-off, ~1e-13 relative for 10-1000 rows; 1e-9 leaves
+        # room for that and is far below what another window or formula would change (one row more
+        # or less moves a change by ~1e-3 relative). abs_tol 1e-12: a series without noise has a
+        # standard error of pure round-off (1e-16 .. 1e-14, summed in another order), while the
+        # smallest error that matters is ~1e-5 (a tolerance of 1e-3 over its 2 SE).
+        for key, _ in KEYS:
+            py = r["checks"][key]
+            cpp_change, cpp_se = trends[key]
+            assert math.isclose(py["measure"], cpp_change, rel_tol=1e-9, abs_tol=1e-12), \
+                f"{name}: change of {key} {py['measure']} vs {cpp_change}"
+            assert math.isclose(py["se_measure"], cpp_se, rel_tol=1e-9, abs_tol=1e-12), \
+                f"{name}: standard error of {key} {py['se_measure']} vs {cpp_se}"
     return r["reached"], first
 
 
@@ -132,33 +158,47 @@ def test_synthetic_series_agree(tmp_path):
         verdicts[name] = assert_agree(name, s, twin)
     # The set exercises both verdicts and the stop part-way (else agreement would prove little).
     assert verdicts["straight drifts inside the tolerances"][0] and verdicts["stationary, q fluctuating 8 %"][0]
-    for name in ("eta drifting 3 %", "p drifting 3 %", "e drifting 0.008", "ended at 8 %",
-                 "sparse: 6 rows in the window", "gap in the window"):
+    for name in ("eta drifting 3 %", "p drifting 3 %", "e drifting 0.008", "Z_mech drifting 3 %", "F_a drifting 8 %",
+                 "eta drifting 1.5 % in noise of 16 %", "ended at eps_q 25 %", "sparse: 5 rows in the window",
+                 "gap in the window"):
         assert not verdicts[name][0], name
     assert verdicts["gap, window still covered"][0]
     n = len(synthetic()["settling test 0"][0])
-    stops = [verdicts[f"settling test {k}"][1] for k in range(6)]
-    assert all(s is not None and 0.1 / 0.3 * n < s < n for s in stops), stops
+    stops = [verdicts[f"settling test {k}"][1] for k in range(4)]
+    assert all(s is not None and (W + PRE) / 0.6 * n < s < n for s in stops), stops
+
+
+def run_settings(run):
+    """The run's critical-state settings, from its stored config (.config.toml)."""
+    with open(os.path.join(run, ".config.toml"), "rb") as f:
+        shear = tomllib.load(f).get("shear", {})
+    return {"window": shear.get("critical_window", W), "tol_eta": shear.get("critical_tolerance", 0.02),
+            "tol_e": shear.get("critical_tolerance_e", 0.005),
+            "tol_fabric": shear.get("critical_tolerance_fabric", 0.05)}
 
 
 @needs_twin
 @pytest.mark.skipif(not RUNS, reason="needs $SANDCELL_TWIN_RESULTS, run folders (ctest: the small campaigns)")
 def test_run_series_agree_and_match_the_app_stops(tmp_path):
-    series, stopped = {}, {}
+    any_stop, any_run_on = False, False
     for run in RUNS:
+        settings = run_settings(run)
         index = results.read_index(run)
         assert index, f"no index.csv rows in {run}"
+        series, stopped = {}, {}
         for row in index:
             path = os.path.join(run, row["file"])
-            t, why = results.read_test(path)
-            assert t is not None, f"{path}: {why}"
-            series[path] = (t["eps1"], t["p"], t["q"], t["e"])
+            cols = results.read_columns(path, ["eps_q", "p", "q", "e", "Z_mech", "fabric"])
+            fa = critical.fabric_anisotropy(cols["fabric"])
+            series[path] = (cols["eps_q"], cols["p"], cols["q"], cols["e"], cols["Z_mech"], fa)
             stopped[path] = "critical" in row["status"]
-    for (path, s), twin in zip(series.items(), run_twin(series, tmp_path)):
-        reached, first = assert_agree(path, s, twin)
-        if stopped[path]:
-            # The app stopped after the row at which its test first held: the file's last row.
-            assert first == len(s[0]) and reached, f"{path}: the app stopped at row {len(s[0])}, replay {first}"
+        for (path, s), twin in zip(series.items(), run_twin(series, tmp_path, settings)):
+            reached, first = assert_agree(path, s, twin, settings)
+            if stopped[path]:
+                # The app stopped after the row at which its test first held: the file's last row.
+                assert first == len(s[0]) and reached, f"{path}: the app stopped at row {len(s[0])}, replay {first}"
+        any_stop = any_stop or any(stopped.values())
+        any_run_on = any_run_on or not all(stopped.values())
     # The stop_at_critical campaign (deterministic: fixed seed, bitwise reproducible engine) has
     # tests that stop and tests that do not: both cases are compared.
-    assert any(stopped.values()) and not all(stopped.values()), stopped
+    assert any_stop and any_run_on

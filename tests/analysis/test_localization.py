@@ -268,7 +268,8 @@ def test_band_profile(tmp_path):
     out = os.path.join(tmp, "out-band")
     res = run(path, "--out", out)
     assert res.returncode == 0, f"banded: exit {res.returncode}, {res.stderr}"
-    assert "band profile: whole-test mode (1,0,1)" in res.stdout and "band slab(s) 4,5" in res.stdout, res.stdout
+    assert "banded: mode (1,0,1)" in res.stdout and "Profile: whole-test mode (1,0,1)" in res.stdout \
+        and "band slab(s) 4,5" in res.stdout, res.stdout
     table = list(csv.DictReader(open(os.path.join(out, "banded-localization-band.csv"))))
     assert list(table[0]) == ["step", "eps_1", "e_band", "e_outside", "e_whole"] + [f"e_{j}" for j in range(K)], \
         list(table[0])
@@ -394,6 +395,16 @@ def test_local_strain_and_command(tmp_path):
     print(f"band increment: mode {mode} share {band['mode_share']:.3f} (shuffled {band['shuffled_share']:.3f}), "
           f"top-10 % share {band['top10_share']:.3f}, CV {band['deps_q_cv']:.3f}, normal "
           f"{band['normal_angle_deg']:.2f} deg (expected {angle:.2f})")
+    # The band detector per increment: the affine one is uniform (no mode, nothing detected); the band beats the
+    # surrogates and its slabs carry several times the outside's deps_q, so its increment is the onset. The file is
+    # not banded: this band shears without dilating, and the verdict asks for a void-ratio contrast (a band in a
+    # dense granular sample dilates) that a band of pure shear does not build.
+    assert (int(aff["band_detected"]), int(band["band_detected"])) == (0, 1), (aff, band)
+    assert int(band["significant"]) and band["mode_share"] > max(band["threshold_noise"], band["threshold_gauss"])
+    assert band["strain_ratio"] >= 2, f"band increment's band/outside deps_q {band['strain_ratio']}"
+    assert int(band["banded"]) == 0 and int(aff["banded"]) == 0, "a band without dilation called banded"
+    md = open(os.path.join(out, "band-localization.md")).read()
+    assert "Onset: steps 1000-2000" in md and "void-ratio contrast" in md, md[md.find("## Band detector"):]
 
     # -- reruns replace the outputs, and leave other files alone
     other = os.path.join(out, "notes.txt")

@@ -8,6 +8,7 @@ Commands (each prints its own options with --help):
   plot             the figure of one results file: plot RESULTS.h5 OUT.png
   replay-critical  the app's critical-state stop replayed on a results file's series
   campaign-table   one row per test of a campaign: its end, critical point and band
+  figures          the study's figures (Liu et al. 2017, Figs 2-4, 6, 8-12) redrawn: figures RESULTS... --out DIR
 
 With the package on the path: installed (pip install --no-build-isolation --no-deps apps/analysis), or
 PYTHONPATH=apps/analysis from the source tree.
@@ -25,6 +26,7 @@ COMMANDS = {
     "plot": None,
     "replay-critical": "replay",
     "campaign-table": "campaign_table",
+    "figures": "study_figures",
 }
 PROG = "python -m sandcell_analysis"
 

@@ -702,8 +702,9 @@ def write_report(path, tests, res, opt, files, skipped):
         f"ratio below {PATH_DEFAULTS['unbalanced']:g}, and no overlap beyond "
         f"{PATH_DEFAULTS['overlap']:g} R. A failed or unfinished test is left out of every fit, "
         "table, trend and figure below.\n")
-    add("Banded: from `triaxial localization --whole` (`--localization DIR`: the whole test's strongest "
-        "planar mode above 3 x its shuffled share; issue 45 questions that detector), else not judged.\n")
+    add("Banded: the verdict of `triaxial localization` (`--localization DIR`: the whole test's strongest "
+        "planar mode above the 0.99 quantile of homogeneous surrogates, the band's deps_q >= 2 x the outside's "
+        "and its void-ratio contrast grown by >= 0.01 and 3 x noise; band_detector.py), else not judged.\n")
     add("| test | status | largest p/sigma3 error (%) | largest b error | largest rotation (deg) "
         "| largest shear / p | critical | banded | reason |")
     add("|---|---|---|---|---|---|---|---|---|")
@@ -978,16 +979,14 @@ def write_report(path, tests, res, opt, files, skipped):
 def banded(name, folder):
     """yes/no from the test's `triaxial localization --whole` CSV in folder, else "not judged"."""
     import csv
-    from .localization import BAND_CONTRAST
     path = os.path.join(folder, f"{name}-localization.csv") if folder else ""
     if not path or not os.path.exists(path):
         return "not judged"
     with open(path, newline="") as fh:
         rows = list(csv.DictReader(fh))
-    if not rows:
+    if not rows or "banded" not in rows[-1]:  # none, or a CSV of the detector before issue 45: run it again
         return "not judged"
-    whole = rows[-1]
-    return "yes" if float(whole["mode_share"]) > BAND_CONTRAST * float(whole["shuffled_share"]) else "no"
+    return "yes" if int(rows[-1]["banded"]) else "no"
 
 
 def _jsonable(x):

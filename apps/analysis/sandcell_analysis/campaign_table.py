@@ -5,9 +5,11 @@
 
 RUN_DIR holds the campaign's index.csv; ANALYSIS_DIR the summary.json of `triaxial analyze`;
 LOCALIZATION_DIR the <test>-localization.csv files of `triaxial localization --whole` (one
-increment, first snapshot to last). A test is banded when its whole-test strongest Fourier mode holds
-more than localization.BAND_CONTRAST times the share of the same bins shuffled (its own criterion
-for a band profile). Writes the table as markdown (--out, default stdout) and as CSV next to it.
+increment, first snapshot to last). A test is banded when those files' `banded` column says so: the
+band detector's verdict (band_detector.py: the whole test's strongest Fourier mode above homogeneous
+surrogates and the physical criteria on strain and void ratio); a CSV without that column (written
+before issue 45) is not judged ("?"). Writes the table as markdown (--out, default stdout) and as CSV
+next to it.
 """
 import argparse
 import csv
@@ -15,7 +17,6 @@ import json
 import os
 import sys
 
-from .localization import BAND_CONTRAST
 from .results import InputError, read_csv_rows, read_index
 
 PROG = os.environ.get("SANDCELL_ANALYZE_PROG", "campaign-table")
@@ -30,8 +31,8 @@ def band_of(localization_dir, name):
     if not rows:
         return "?", "", NAN
     whole = rows[-1]
-    share, shuffled = float(whole["mode_share"]), float(whole["shuffled_share"])
-    band = "yes" if share > BAND_CONTRAST * shuffled else "no"
+    share = float(whole["mode_share"])
+    band = ("yes" if int(whole["banded"]) else "no") if "banded" in whole else "?"
     return band, f"({whole['mode_h']},{whole['mode_k']},{whole['mode_l']})", share
 
 

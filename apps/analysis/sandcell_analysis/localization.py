@@ -23,14 +23,25 @@ many; ~1 % of axial strain apart suits the method) and, for each pair of consecu
      vector, so it shows as power of the local deps_q field (mean removed) concentrated in one low
      Fourier mode (h, k, l) in [-2, 2]^3, +-(h, k, l) one mode. The strongest mode's share of the
      variance (Parseval) is given next to the same share of the bins randomly permuted (mean of 20
-     permutations, fixed seed): the share a field of noise would reach. The band normal is
-     n ~ (h/L_1, k/L_2, l/L_3); its angle to axis 1 (the most compressed) is reported.
+     permutations, fixed seed; the criterion before issue 45, a spatially white null, kept for
+     comparison). The band normal is n ~ (h/L_1, k/L_2, l/L_3); its angle to axis 1 (the most
+     compressed) is reported.
+  5. the band detector's test of the increment (band_detector.py): the share against the 0.99
+     quantile of 200 homogeneous surrogates of each of two kinds at the same grid (particle noise;
+     particle noise plus a correlated Gaussian displacement field of the covariance length fitted to
+     the test's own bin means): threshold_noise, threshold_gauss, corr_length (m), corr_fraction,
+     significant; and across that mode's slabs the band/outside deps_q (strain_ratio). The increment
+     detects a band (band_detected) when significant and strain_ratio >= 2. Onset: the first such
+     increment; persistent when >= 50 % of the later ones detect it again in the same mode.
 The sampling of ~40 particles a bin leaves a noise floor in the local field: the CV and the mean
-local deps_q include it, the shuffled share measures it.
+local deps_q include it, the surrogates of kind (a) measure it.
 
-Band profile (whatever --whole says): is the band denser or looser than the rest? The strongest mode
-(h, k, l) of the whole-test increment (first snapshot to last) is the file's band if its share is
-above 3 times the shuffled one (else "no band", and no profile). xi = frac(h s_1 + k s_2 + l s_3) is
+Band profile and verdict (whatever --whole says): is there a band, and is it denser or looser than the
+rest? The strongest mode (h, k, l) of the whole-test increment (first snapshot to last) is the file's
+candidate. The file is banded (the `banded` column, the same in every row) when its share is above the
+surrogates' 0.99 quantile, the band/outside deps_q across it is >= 2 in at least one snapshot increment,
+and the band's void ratio minus the outside's grows from the first snapshot to the last by >= 0.01 and
+>= 3 times its noise (band_detector.py says why these numbers). xi = frac(h s_1 + k s_2 + l s_3) is
 kept by the cell's affine deformation, so K slabs of equal xi width (--slabs, default 10) are material
 slabs but for the non-affine motion, each V_cell / K of the cell at every snapshot; they lie across
 the band, spacing d = 1 / |n| between the mode's planes, d / K thick.
@@ -43,9 +54,10 @@ the band, spacing d = 1 / |n| between the mode's planes, d / K thick.
     n^T)); its deps_q locates the band: the slabs above the mean by more than half the way to the
     largest. The rest is "outside".
 Its outputs: <stem>-localization-band.csv (one row per snapshot: step, eps_1, e of the band slabs
-together, of the outside, of all slabs, which is the series' e = V_cell / V_s - 1, and of each slab),
-a "Band profile" section in the summary and a third column in the figure (deps_q and deps_v per slab;
-e per slab at the first, middle and last snapshot), and one printed line.
+together, of the outside, of all slabs, which is the series' e = V_cell / V_s - 1, and of each slab;
+written only when the file is banded), a "Band profile" section in the summary (the verdict and the
+candidate's profile) and a third column in the figure (deps_q and deps_v per slab; e per slab at the
+first, middle and last snapshot), and one printed line.
 
 Writes, into --out (default: next to each input), <stem>-localization.csv (one row per increment),
 <stem>-localization.md (summary) and <stem>-localization.png: the statistics against eps_1 over q/p
@@ -72,10 +84,13 @@ TOP = 0.10            # the top-share fraction of bins
 MAX_ORDER = 2         # mode components searched: [-2, 2]
 SHUFFLES, SEED = 20, 12345
 SLABS = 10            # default slabs across the band's period
-BAND_CONTRAST = 3.0   # a band: the whole test's mode share above this many times the shuffled share
+# The criterion before issue 45 (mode share above this many times the shuffled share): a spatially white null that
+# any correlated but diffuse field beats. Kept for the comparison only (old_criterion); the verdict is band_detector's.
+BAND_CONTRAST = 3.0
 COLUMNS = ["step_a", "step_b", "eps1_mid", "deps_q_macro", "deps_v_macro", "deps_q_mean", "deps_q_cv",
            "top10_share", "mode_h", "mode_k", "mode_l", "mode_share", "shuffled_share", "normal_angle_deg",
-           "deps_v_std"]
+           "deps_v_std", "threshold_noise", "threshold_gauss", "corr_length", "corr_fraction", "significant",
+           "strain_ratio", "band_detected", "banded"]
 
 
 def fail(msg, code=2):
@@ -106,19 +121,48 @@ def non_affine(id_a, x_a, L_a, id_b, x_b, L_b):
 def local_strain(id_a, x_a, L_a, id_b, x_b, L_b, G):
     """Local strain increments [G, G, G, 3, 3] (compression positive) between two snapshots, and the
     particles matched. Raises ValueError on an empty bin."""
+    deps, ia, _, _ = increment_field(id_a, x_a, L_a, id_b, x_b, L_b, G)
+    return deps, len(ia)
+
+
+def increment_field(id_a, x_a, L_a, id_b, x_b, L_b, G):
+    """local_strain's field, the matched particles (indices into a), their fractional coordinates s_a and their
+    non-affine displacements u (what the band detector's surrogates are built on)."""
     L_a, L_b = np.asarray(L_a, float), np.asarray(L_b, float)
     ia, s_a, u = non_affine(id_a, x_a, L_a, id_b, x_b, L_b)
+    return binned_strain(s_a, u, L_a, L_b, G), ia, s_a, u
+
+
+def bin_counts(s_a, G):
+    """The bin of each particle (flat index into the G-grid) and the particles per bin. Raises ValueError on an
+    empty bin."""
     # floor then mod: a coordinate a hair below 0 (unwrapped) lands in the last bin, not at index -1
     cell = np.floor(s_a * G).astype(np.int64) % G
     flat = (cell[:, 0] * G + cell[:, 1]) * G + cell[:, 2]
     count = np.bincount(flat, minlength=G ** 3)
     if not count.all():
         raise ValueError(f"{np.count_nonzero(count == 0)} of {G ** 3} bins are empty")
+    return flat, count
+
+
+def binned_strain(s_a, u, L_a, L_b, G):
+    """Local strain increments [G, G, G, 3, 3] from the particles' fractional coordinates s_a (at a) and non-affine
+    displacements u, the cell going from L_a to L_b. Raises ValueError on an empty bin."""
+    flat, count = bin_counts(s_a, G)
     U = np.stack([np.bincount(flat, u[:, c], G ** 3) / count for c in range(3)], -1).reshape(G, G, G, 3)
+    return strain_of_means(U, L_a, L_b)
+
+
+def strain_of_means(U, L_a, L_b):
+    """The local strain [..., G, G, G, 3, 3] of bin-mean non-affine displacements U [..., G, G, G, 3]: periodic
+    central differences over the mean cell's bin spacing, plus the affine increment, compression positive."""
+    G = U.shape[-2]
     spacing = 0.5 * (L_a + L_b) / G
-    grad = np.stack([(np.roll(U, -1, m) - np.roll(U, 1, m)) / (2.0 * spacing[m]) for m in range(3)], -1)  # [.., i, m]
+    axes = range(U.ndim - 4, U.ndim - 1)
+    grad = np.stack([(np.roll(U, -1, a) - np.roll(U, 1, a)) / (2.0 * spacing[m]) for m, a in enumerate(axes)],
+                    -1)  # [..., i, m]
     affine = np.diag(np.log(L_b / L_a))
-    return -(affine + 0.5 * (grad + np.swapaxes(grad, -1, -2))), len(ia)
+    return -(affine + 0.5 * (grad + np.swapaxes(grad, -1, -2)))
 
 
 def mode_table(G):
@@ -158,8 +202,10 @@ def top_share(values, fraction=TOP):
     return float((v[:m].sum() + (k - m) * (v[m] if m < v.size else 0.0)) / total) if total > 0 else math.nan
 
 
-def increment_stats(deps, L_a, L_b, table, rng_seed=SEED):
-    """The statistics of one increment's local strain field (a dict, keys as COLUMNS) and its deps_q field."""
+def increment_stats(deps, L_a, L_b, table, rng_seed=SEED, particles=None):
+    """The statistics of one increment's local strain field (a dict, keys as COLUMNS up to deps_v_std; with
+    particles = (s_a, u), also the band detector's test of the field: band_detector.judge_field) and its deps_q
+    field."""
     q, v = strain_invariants(deps)
     q_macro, v_macro = strain_invariants(-np.diag(np.log(np.asarray(L_b, float) / np.asarray(L_a, float))))
     hkl, share = strongest_mode(q, table)
@@ -174,7 +220,23 @@ def increment_stats(deps, L_a, L_b, table, rng_seed=SEED):
                 mode_h=hkl[0], mode_k=hkl[1], mode_l=hkl[2], mode_share=share, shuffled_share=shuffled,
                 normal_angle_deg=math.degrees(math.atan2(np.hypot(normal[1], normal[2]), abs(normal[0])))
                 if any(hkl) else math.nan,
-                deps_v_std=float(v.std())), q
+                deps_v_std=float(v.std()), **detector_columns(q, L_a, L_b, table, particles)), q
+
+
+def detector_columns(q, L_a, L_b, table, particles):
+    """The band detector's columns of an increment (NaN without the particles)."""
+    if particles is None:
+        return dict(threshold_noise=math.nan, threshold_gauss=math.nan, corr_length=math.nan,
+                    corr_fraction=math.nan, significant=0)
+    from .band_detector import judge_field
+    j = judge_field(q, *particles, L_a, L_b, table)
+    return dict(threshold_noise=j["threshold_noise"], threshold_gauss=j["threshold_gauss"], corr_length=j["ell"],
+                corr_fraction=j["nu"], significant=int(j["significant"]))
+
+
+def old_criterion(row):
+    """The pre-issue-45 verdict of a row (mode share above BAND_CONTRAST x the shuffled share): for comparison only."""
+    return float(row["mode_share"]) > BAND_CONTRAST * float(row["shuffled_share"])
 
 
 def mode_geometry(L, hkl):
@@ -249,42 +311,63 @@ def void_ratio(volume, solid):
         return (volume - solid) / solid
 
 
-def band_profile(f, path, series, G, K):
-    """The band profile of a results file (a dict; "rows" None with a "note" when there is no band): the strongest
-    mode of the whole-test increment, the local strain of K slabs across it over the whole test, and the void ratio
-    per slab, of the band's slabs, of the rest and of all at every snapshot."""
-    names = snapshot_names(f, path)  # the stage's end replacing the last interval snapshot, as the increments
-    step_a, id_a, x_a, L_a = read_snapshot(f, names[0], path)
-    step_b, id_b, x_b, L_b = read_snapshot(f, names[-1], path)
-    try:
-        deps, _ = local_strain(id_a, x_a, L_a, id_b, x_b, L_b, G)
-    except ValueError as e:
-        fail(f"{path}: whole test, steps {step_a}-{step_b}: {e} (G = {G}): use a smaller --grid")
-    stats, _ = increment_stats(deps, L_a, L_b, mode_table(G))
-    hkl = (stats["mode_h"], stats["mode_k"], stats["mode_l"])
-    out = dict(hkl=hkl, share=stats["mode_share"], shuffled=stats["shuffled_share"], K=K,
-               angle=stats["normal_angle_deg"], steps=(step_a, step_b), rows=None)
+def profile_of(snaps, series, G, K, whole=None):
+    """The band profile of a test and its verdict (a dict) from its snapshots [(step, ids, positions, cell lengths,
+    radii or None)]: the strongest mode of the whole-test increment (first snapshot to last) and the band detector's
+    test of that field (band_detector: "judged", "banded" and the reasons "why" not), the local strain of K slabs
+    across the mode over the whole test, its band slabs and their strain ratio, the void ratio per slab, of the
+    band's slabs, of the rest and of all at every snapshot, and the growth of the band's void-ratio contrast. "rows"
+    is None with a "note" when there is no profile (a uniform field, no radii). The strain criterion ("ratio") is
+    the largest band/outside deps_q ratio of the snapshot-to-snapshot increments across the whole test's mode
+    ("ratios"; "ratio_whole": the whole test's). whole: the whole-test increment's
+    stats if already computed (increment_stats with particles). series: /series (step, strain, e) for eps_1 and e.
+    Raises ValueError on an empty bin or slab."""
+    from . import band_detector as bd
+    step_a, id_a, x_a, L_a, _ = snaps[0]
+    step_b, id_b, x_b, L_b, _ = snaps[-1]
+    if whole is None:
+        try:
+            deps, _, s_a, u = increment_field(id_a, x_a, L_a, id_b, x_b, L_b, G)
+        except ValueError as e:
+            raise ValueError(f"{e} (G = {G}): use a smaller --grid") from None
+        whole, _ = increment_stats(deps, L_a, L_b, mode_table(G), particles=(s_a, u))
+    hkl = (whole["mode_h"], whole["mode_k"], whole["mode_l"])
+    judged = dict(hkl=hkl, share=whole["mode_share"], threshold_noise=whole["threshold_noise"],
+                  threshold_gauss=whole["threshold_gauss"], ell=whole["corr_length"], nu=whole["corr_fraction"],
+                  significant=bool(whole["significant"]))
+    out = dict(hkl=hkl, share=whole["mode_share"], shuffled=whole["shuffled_share"], K=K,
+               angle=whole["normal_angle_deg"], steps=(step_a, step_b), rows=None, judged=judged, banded=False,
+               ratio=math.nan, growth=math.nan, noise=math.nan)
     if not any(hkl):
+        out["why"] = ["the field is uniform to round-off"]
         out["note"] = f"no band: the whole test's local deps_q (steps {step_a}-{step_b}) is uniform to round-off"
-        return out
-    if not stats["mode_share"] > BAND_CONTRAST * stats["shuffled_share"]:
-        out["note"] = (f"no band: the whole test's strongest mode {mode_str(hkl)} holds {stats['mode_share']:.3f} of "
-                       f"the variance, not above {BAND_CONTRAST:g} x the shuffled {stats['shuffled_share']:.3f}")
-        return out
-    missing = [n for n in names if "radius" not in f["snapshots"][n]]
-    if missing:
-        out["note"] = f"no band profile: snapshot(s) {', '.join(missing[:3])} lack the particle radii"
         return out
     try:
         deps = slab_strain(id_a, x_a, L_a, id_b, x_b, L_b, hkl, K)
     except ValueError as e:
-        fail(f"{path}: whole test, steps {step_a}-{step_b}: {e}: use fewer --slabs")
+        raise ValueError(f"{e}: use fewer --slabs") from None
     q, v = strain_invariants(deps)
     band = band_slabs(q)
+    # the strain criterion on the strain increments (snapshot to snapshot) across the whole test's mode: the whole
+    # test averages the deformation before the band formed into the band's and the outside's alike
+    ratios = []
+    for (_, id_p, x_p, L_p, _), (_, id_n, x_n, L_n, _) in zip(snaps[:-1], snaps[1:]):
+        try:
+            q_inc = strain_invariants(slab_strain(id_p, x_p, L_p, id_n, x_n, L_n, hkl, K))[0]
+        except ValueError as e:
+            raise ValueError(f"{e}: use fewer --slabs") from None
+        ratios.append(bd.strain_ratio(q_inc, band_slabs(q_inc)))
+    out.update(deps_q=q, deps_v=v, band=band, ratio_whole=bd.strain_ratio(q, band), ratios=ratios,
+               ratio=max(ratios))
+    missing = [str(sn[0]) for sn in snaps if sn[4] is None]
+    if missing:
+        out["why"] = ["no void ratios (snapshots without radii)"]
+        out["note"] = (f"no band verdict: snapshot(s) at step {', '.join(missing[:3])} lack the particle radii (no "
+                       "void ratios); no band profile")
+        return out
     rows = []
-    for name in names:
-        step, _, x, L = read_snapshot(f, name, path)
-        solid = slab_solid_volumes(x, np.asarray(f["snapshots"][name]["radius"][:], float), L, hkl, K)
+    for step, _, x, L, r in snaps:
+        solid = slab_solid_volumes(x, r, L, hkl, K)
         V = float(np.prod(L))
         rows.append(dict(step=step, eps_1=float(np.interp(step, series["step"], series["strain"][:, 0])) + 0.0,  # no -0
                          e_band=void_ratio(band.sum() * V / K, solid[band].sum()),
@@ -292,7 +375,11 @@ def band_profile(f, path, series, G, K):
                          e_whole=void_ratio(V, solid.sum()), e_slab=void_ratio(V / K, solid),
                          e_series=float(np.interp(step, series["step"], series["e"])) if "e" in series else math.nan,
                          series_row=bool(np.isin(step, series["step"])), d=mode_geometry(L, hkl)[0]))
-    out.update(rows=rows, deps_q=q, deps_v=v, band=band)
+    growth, noise = bd.void_contrast(rows[0]["e_slab"], rows[-1]["e_slab"], band)
+    banded, why = bd.verdict(judged, out["ratio"], growth, noise)
+    out.update(rows=rows, growth=growth, noise=noise, banded=banded, why=why)
+    if not banded:
+        out["note"] = "no band: " + "; ".join(why)
     return out
 
 
@@ -314,35 +401,90 @@ def write_text(path, text):
     write_atomic(path, write)
 
 
+def read_snapshots(f, path):
+    """The snapshots of an open results file for the increments and the band profile: [(step, ids, positions, cell
+    lengths, radii or None)] (snapshot_names: the stage's end replacing the last interval snapshot)."""
+    snaps = []
+    for name in snapshot_names(f, path):
+        g = f["snapshots"][name]
+        snaps.append(read_snapshot(f, name, path) + (np.asarray(g["radius"][:], float) if "radius" in g else None,))
+    return snaps
+
+
+def band_profile(f, path, series, G, K):
+    """The band profile of a results file and its verdict (profile_of on its snapshots; exit 2 on an empty bin or
+    slab)."""
+    snaps = read_snapshots(f, path)
+    try:
+        return profile_of(snaps, series, G, K)
+    except ValueError as e:
+        fail(f"{path}: whole test, steps {snaps[0][0]}-{snaps[-1][0]}: {e}")
+
+
 def analyse(path, G_opt, whole, K=SLABS):
-    """Rows of statistics and the local deps_q fields of every increment of one results file, and its band profile."""
+    """Rows of statistics and the local deps_q fields of every increment of one results file, its band profile and
+    verdict, and the band's onset and persistence over the increments (judge_test on its snapshots)."""
     with open_results(path) as f:
         series = read_series(f, path)
-        names = snapshot_names(f, path, whole)
-        rows, fields = [], []
-        step_a, id_a, x_a, L_a = read_snapshot(f, names[0], path)
-        G = G_opt or default_grid(len(id_a))
-        table = mode_table(G)
-        for name in names[1:]:
-            step_b, id_b, x_b, L_b = read_snapshot(f, name, path)
+        snaps = read_snapshots(f, path)
+    G = G_opt or default_grid(len(snaps[0][1]))
+    name = os.path.basename(path)
+
+    def log(r):
+        print(f"{PROG}: {name}: steps {r['step_a']}-{r['step_b']}, eps1 {r['eps1_mid']:.4f}: deps_q macro "
+              f"{r['deps_q_macro']:.3e}, local mean {r['deps_q_mean']:.3e}, CV {r['deps_q_cv']:.3f}, "
+              f"top-10% {r['top10_share']:.3f}, mode ({r['mode_h']},{r['mode_k']},{r['mode_l']}) "
+              f"{r['mode_share']:.3f} (shuffled {r['shuffled_share']:.3f}; surrogates' quantile "
+              f"{max(r['threshold_noise'], r['threshold_gauss']):.3f}), normal {r['normal_angle_deg']:.1f} deg "
+              f"to axis 1, band/outside deps_q {r['strain_ratio']:.2f}: "
+              f"{'band' if r['band_detected'] else 'no band'}", flush=True)
+    try:
+        res = judge_test(snaps, series, G, K, whole, log)
+    except ValueError as e:
+        fail(f"{path}: {e}")
+    print(f"{PROG}: {name}: {band_line(res['band'])}", flush=True)
+    return res
+
+
+def judge_test(snaps, series, G, K=SLABS, whole=False, log=None):
+    """The increments (snapshot to snapshot; with whole, the first to the last only) of a test's snapshots
+    [(step, ids, positions, cell lengths, radii or None)]: their rows of statistics (COLUMNS), the band detector's
+    test of each and its slab strain ratio across its mode, their deps_q fields, the band profile and verdict of the
+    whole test (profile_of), and the onset and persistence (band_detector.onset_persistence). log(row) is called
+    for each increment. Raises ValueError (naming the steps) on an empty bin or slab."""
+    from . import band_detector as bd
+    table = mode_table(G)
+    rows, fields = [], []
+    pairs = [(snaps[0], snaps[-1])] if whole else list(zip(snaps[:-1], snaps[1:]))
+    for (step_a, id_a, x_a, L_a, _), (step_b, id_b, x_b, L_b, _) in pairs:
+        try:
+            deps, ia, s_a, u = increment_field(id_a, x_a, L_a, id_b, x_b, L_b, G)
+        except ValueError as e:
+            raise ValueError(f"steps {step_a}-{step_b}: {e} (G = {G}): use a smaller --grid") from None
+        stats, q = increment_stats(deps, L_a, L_b, table, particles=(s_a, u))
+        hkl = (stats["mode_h"], stats["mode_k"], stats["mode_l"])
+        ratio = math.nan
+        if any(hkl):
             try:
-                deps, matched = local_strain(id_a, x_a, L_a, id_b, x_b, L_b, G)
+                q_slab = strain_invariants(slab_strain(id_a, x_a, L_a, id_b, x_b, L_b, hkl, K))[0]
             except ValueError as e:
-                fail(f"{path}: steps {step_a}-{step_b}: {e} (G = {G}): use a smaller --grid")
-            stats, q = increment_stats(deps, L_a, L_b, table)
-            eps1 = float(np.interp(0.5 * (step_a + step_b), series["step"], series["strain"][:, 0]))
-            rows.append(dict(step_a=step_a, step_b=step_b, eps1_mid=eps1, **stats))
-            fields.append((q, 0.5 * (L_a + L_b)))
-            r = rows[-1]
-            print(f"{PROG}: {os.path.basename(path)}: steps {step_a}-{step_b}, eps1 {eps1:.4f}: deps_q macro "
-                  f"{r['deps_q_macro']:.3e}, local mean {r['deps_q_mean']:.3e}, CV {r['deps_q_cv']:.3f}, "
-                  f"top-10% {r['top10_share']:.3f}, mode ({r['mode_h']},{r['mode_k']},{r['mode_l']}) "
-                  f"{r['mode_share']:.3f} (shuffled {r['shuffled_share']:.3f}), normal "
-                  f"{r['normal_angle_deg']:.1f} deg to axis 1", flush=True)
-            step_a, id_a, x_a, L_a = step_b, id_b, x_b, L_b
-        band = band_profile(f, path, series, G, K)
-    print(f"{PROG}: {os.path.basename(path)}: {band_line(band)}", flush=True)
-    return dict(rows=rows, fields=fields, series=series, G=G, N=len(id_a), matched=matched, band=band)
+                raise ValueError(f"steps {step_a}-{step_b}: {e}: use fewer --slabs") from None
+            ratio = bd.strain_ratio(q_slab, band_slabs(q_slab))
+        stats.update(strain_ratio=ratio, band_detected=int(bool(stats["significant"]) and ratio >= bd.STRAIN_RATIO))
+        eps1 = float(np.interp(0.5 * (step_a + step_b), series["step"], series["strain"][:, 0]))
+        rows.append(dict(step_a=step_a, step_b=step_b, eps1_mid=eps1, **stats))
+        fields.append((q, 0.5 * (L_a + L_b)))
+        if log:
+            log(rows[-1])
+    same = rows[-1] if (rows[-1]["step_a"], rows[-1]["step_b"]) == (snaps[0][0], snaps[-1][0]) else None
+    try:
+        band = profile_of(snaps, series, G, K, whole=same)
+    except ValueError as e:
+        raise ValueError(f"whole test, steps {snaps[0][0]}-{snaps[-1][0]}: {e}") from None
+    for r in rows:
+        r["banded"] = int(band["banded"])
+    return dict(rows=rows, fields=fields, series=series, G=G, N=len(snaps[-1][1]), matched=len(ia), band=band,
+                onset=bd.onset_persistence(rows), whole=whole)
 
 
 def band_summary(b):
@@ -368,11 +510,27 @@ def slab_list(mask):
     return ",".join(str(j) for j in np.flatnonzero(mask))
 
 
+def verdict_text(b):
+    """The file's verdict in one phrase: "banded (...)" or "no band: <reasons>"."""
+    from . import band_detector as bd
+    j = b["judged"]
+    if not any(b["hkl"]):
+        return b["note"]
+    tests = (f"mode {mode_str(b['hkl'])} share {j['share']:.3f} against the surrogates' {bd.QUANTILE:g} quantile "
+             f"{max(j['threshold_noise'], j['threshold_gauss']):.3f} (particle noise {j['threshold_noise']:.3f}, "
+             f"correlated Gaussian {j['threshold_gauss']:.3f}, ell {j['ell'] * 1e3:.2f} mm, fraction {j['nu']:.2f}); "
+             f"band/outside deps_q {b['ratio']:.2f} (largest of the {len(b.get('ratios', []))} increments across this "
+             f"mode; whole test {b.get('ratio_whole', math.nan):.2f}; >= {bd.STRAIN_RATIO:g}); void-ratio contrast "
+             f"growth {b['growth']:+.4f} (noise {b['noise']:.4f}; >= {bd.VOID_CONTRAST:g} and {bd.NOISE_SIGMAS:g} x "
+             "noise)")
+    return ("banded: " if b["banded"] else "no band: " + "; ".join(b["why"]) + ". Whole test: ") + tests
+
+
 def band_line(b):
     if b["rows"] is None:
         return b["note"]
     s = band_summary(b)
-    return (f"band profile: whole-test mode {mode_str(b['hkl'])} share {b['share']:.3f} (shuffled "
+    return (f"{verdict_text(b)}. Profile: whole-test mode {mode_str(b['hkl'])} share {b['share']:.3f} (shuffled "
             f"{b['shuffled']:.3f}), {b['K']} slabs, band slab(s) {slab_list(b['band'])}: e_band "
             f"{s['band']['e0']:.4f} -> "
             f"{s['band']['e1']:.4f} ({s['band']['e1'] - s['band']['e0']:+.4f}), e_outside {s['outside']['e0']:.4f} "
@@ -420,8 +578,41 @@ def write_summary(path, src, res):
                      f"{r['deps_q_mean']:.3e} | {r['deps_q_cv']:.3f} | {r['top10_share']:.3f} | "
                      f"({r['mode_h']},{r['mode_k']},{r['mode_l']}) | {r['mode_share']:.3f} | "
                      f"{r['shuffled_share']:.3f} | {r['normal_angle_deg']:.1f} |")
-    write_text(path, "\n".join(lines + [""] + band_section(res["band"])) + "\n")
+    write_text(path, "\n".join(lines + [""] + onset_section(res) + band_section(res["band"])) + "\n")
     return best
+
+
+def onset_section(res):
+    """The summary's "Onset" section: per increment, band detected or not, and the onset and persistence."""
+    from . import band_detector as bd
+    rows = res["rows"]
+    k0, frac, persistent = res["onset"]
+    lines = ["## Band detector per increment", "",
+             f"An increment's band is detected when its strongest mode's share is above the {bd.QUANTILE:g} quantile "
+             f"of {bd.N_SURROGATES} homogeneous surrogates of each kind (particle noise; correlated Gaussian of the "
+             f"fitted correlation length) and the slabs across that mode carry >= {bd.STRAIN_RATIO:g} times the "
+             "outside's deps_q in the band.", "",
+             "| steps | eps_1 | mode | share | surrogates (noise / Gaussian) | ell (mm) | band/outside deps_q | "
+             "detected |", "|---|---|---|---|---|---|---|---|"]
+    for r in rows:
+        lines.append(f"| {r['step_a']}-{r['step_b']} | {r['eps1_mid']:.4f} | ({r['mode_h']},{r['mode_k']},"
+                     f"{r['mode_l']}) | {r['mode_share']:.3f} | {r['threshold_noise']:.3f} / "
+                     f"{r['threshold_gauss']:.3f} | {r['corr_length'] * 1e3:.2f} | {r['strain_ratio']:.2f} | "
+                     f"{'yes' if r['band_detected'] else 'no'} |")
+    if res.get("whole"):
+        lines += ["", "--whole: one increment, the whole test (the file's verdict, below, takes the strain criterion "
+                  "from the snapshot increments); the onset and persistence need those increments: run without "
+                  "--whole."]
+    elif k0 is None:
+        lines += ["", "Onset: none (no increment detects a band)."]
+    else:
+        r = rows[k0]
+        lines += ["", f"Onset: steps {r['step_a']}-{r['step_b']} (eps_1 = {r['eps1_mid']:.4f} at the midpoint), mode "
+                  f"({r['mode_h']},{r['mode_k']},{r['mode_l']}); detected again in the same mode in "
+                  + ("no later increment (the last one)" if math.isnan(frac) else
+                     f"{frac:.0%} of the later increments: {'persistent' if persistent else 'not persistent'} "
+                     f"(>= {bd.PERSISTENCE:.0%})") + "."]
+    return lines + [""]
 
 
 def band_section(b):
@@ -431,6 +622,10 @@ def band_section(b):
         return lines + [b["note"][0].upper() + b["note"][1:] + "; the band profile is skipped."]
     s, rows, K = band_summary(b), b["rows"], b["K"]
     first, last = rows[0], rows[-1]
+    v = verdict_text(b)
+    lines += [v[0].upper() + v[1:] + ". (Band detector: apps/analysis/sandcell_analysis/band_detector.py; banded "
+              "only when the mode beats both kinds of homogeneous surrogates and the strain and void-ratio criteria "
+              "hold.)" + ("" if b["banded"] else " The profile below is the candidate mode's."), ""]
     lines += [f"Mode {mode_str(b['hkl'])} of the whole test (steps {b['steps'][0]}-{b['steps'][1]}): "
               f"share {b['share']:.3f} against {b['shuffled']:.3f} shuffled, normal {b['angle']:.1f} deg to axis 1. "
               f"{K} slabs of equal xi across it, each 1/{K} of the cell at every snapshot, "
@@ -531,11 +726,11 @@ def run(args):
     for src, prefix in outputs.items():
         res = analyse(src, args.grid, args.whole, args.slabs)
         write_csv(prefix + ".csv", res["rows"])
-        if res["band"]["rows"] is not None:
+        if res["band"]["rows"] is not None and res["band"]["banded"]:
             write_band_csv(prefix + "-band.csv", res["band"])
         elif os.path.exists(prefix + "-band.csv"):
             os.remove(prefix + "-band.csv")  # an earlier run's profile: this one found no band
         best = write_summary(prefix + ".md", src, res)
         plots.localization_figure(prefix + ".png", src, res, best)
-        print(f"{PROG}: wrote {prefix}.md (+ csv, {'band csv, ' if res['band']['rows'] is not None else ''}png)")
+        print(f"{PROG}: wrote {prefix}.md (+ csv, {'band csv, ' if res['band']['banded'] else ''}png)")
     return 0

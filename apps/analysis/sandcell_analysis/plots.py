@@ -329,8 +329,11 @@ def draw_band(ax_q, ax_e, b):
     ax_q.stairs(b["deps_v"], edges, baseline=None, color="C3", lw=1.5, ls="--", label="deps_v (compression +)")
     ax_q.axhline(0.0, color="0.5", lw=0.6)
     ax_q.set_ylabel("local strain, whole test")
-    ax_q.set_title(f"band profile across mode {loc.mode_str(b['hkl'])} (share {b['share']:.2f}, shuffled "
-                   f"{b['shuffled']:.3f})\n{K} slabs of equal xi; band slabs shaded", fontsize=8)
+    j = b["judged"]
+    ax_q.set_title(f"{'BANDED' if b['banded'] else 'no band (candidate mode)'}: mode {loc.mode_str(b['hkl'])} share "
+                   f"{b['share']:.2f} (surrogates {max(j['threshold_noise'], j['threshold_gauss']):.2f})\nband/outside "
+                   f"deps_q {b['ratio']:.2f} (>= 2), e contrast growth {b['growth']:+.3f} (noise {b['noise']:.3f})\n"
+                   f"{K} slabs of equal xi; band slabs shaded", fontsize=8)
     ax_q.legend(fontsize=7)
     picks = sorted({0, len(rows) // 2, len(rows) - 1})
     for c, k in enumerate(picks):
@@ -359,8 +362,14 @@ def localization_figure(path, src, res, best):
     ax = axs[0, 0]
     for key, label, style in (("deps_q_cv", "CV of local deps_q", "o-"), ("top10_share", "top-10 % share", "s-"),
                               ("mode_share", "largest mode share", "^-"),
-                              ("shuffled_share", "mode share, bins shuffled", "v:")):
+                              ("shuffled_share", "mode share, bins shuffled (old null)", "v:")):
         ax.plot(eps1, [r[key] for r in rows], style, ms=4, label=label)
+    ax.plot(eps1, [max(r["threshold_noise"], r["threshold_gauss"]) for r in rows], "k_", ms=12, mew=2,
+            label="mode share: surrogates' 0.99 quantile")
+    hit = [k for k, r in enumerate(rows) if r["band_detected"]]
+    if hit:
+        ax.plot([eps1[k] for k in hit], [rows[k]["mode_share"] for k in hit], "o", mfc="none", mec="r", ms=10,
+                label="band detected")
     ax.axhline(loc.TOP, color="0.6", lw=0.8, ls="--", label="top-10 % share if uniform")
     ax.set_xlabel("eps_1 (increment midpoint)")
     ax.set_ylabel("localization measures")
@@ -383,7 +392,10 @@ def localization_figure(path, src, res, best):
     for k, ax, title in ((len(rows) - 1, axs[0, 1], "last increment"), (best, axs[1, 1], "largest mode share")):
         draw_map(fig, ax, *res["fields"][k], rows[k], title)
     draw_band(axs[0, 2], axs[1, 2], res["band"])
-    fig.suptitle(f"local strain increments of {os.path.basename(src)} ({res['G']}^3 bins)", fontsize=10)
+    fig.suptitle(f"local strain increments of {os.path.basename(src)} ({res['G']}^3 bins): "
+                 f"{'banded' if res['band']['banded'] else 'no band'}. "
+                 f"Reproduce: triaxial localization {'--whole ' if res.get('whole') else ''}{os.path.basename(src)}",
+                 fontsize=10)
     fig.tight_layout()
     loc.write_atomic(path, lambda tmp: fig.savefig(tmp, format="png", dpi=110))
     plt.close(fig)

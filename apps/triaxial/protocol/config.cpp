@@ -190,10 +190,29 @@ void parse_prepare(const toml::table& root, const std::string& source, PrepareCo
   s.boolean("chain", p.chain);
   s.number("dt_fraction", p.dt_fraction, 1e-6, 1.0,
            "must be in (0, 1] (fraction of the Rayleigh time; default time.dt_fraction)");
+  p.target_e0 = s.numbers("target_e0", "a void ratio in (0, 5], or one per tests.p0");
+  for (std::size_t k = 0; k < p.target_e0.size(); ++k)
+    if (!(p.target_e0[k] > 0.0 && p.target_e0[k] <= 5.0))
+      s.fail(p.target_e0.size() == 1 ? "target_e0" : "target_e0[" + std::to_string(k) + "]", num(p.target_e0[k]),
+             "must be in (0, 5] (a void ratio)");
+  // The search's settings act only with a target: without one each would have no effect.
+  const bool target = !p.target_e0.empty();
+  for (const char* key : {"target_e0_tolerance", "max_friction", "trial_count"})
+    if (!target && s.get(key)) s.fail(key, "given", "acts only with prepare.target_e0; allowed: leave it out");
+  s.number("target_e0_tolerance", p.target_tolerance, 1e-4, 0.1, "must be in [1e-4, 0.1] (void ratio)");
+  s.number("max_friction", p.max_friction, 0.01, 10.0, "must be in [0.01, 10]");
+  s.integer("trial_count", p.trial_count, 100, 10'000'000, "must be an integer in [100, 1e7] spheres");
   s.check_unknown();
 }
 
 }  // namespace
+
+double PrepareConfig::target_for(double p0, const std::vector<double>& p0s) const {
+  if (target_e0.empty()) return std::nan("");
+  if (target_e0.size() == 1) return target_e0.front();
+  const auto it = std::find(p0s.begin(), p0s.end(), p0);
+  return it == p0s.end() ? std::nan("") : target_e0[static_cast<std::size_t>(it - p0s.begin())];
+}
 
 Config load_config(const std::string& path) {
   const bool directory = std::filesystem::is_directory(path);
@@ -228,6 +247,7 @@ Config parse_config(const std::string& text, const std::string& source) {
   check_shearing_cell(c, source);
   check_shear_for_tests(c, source);
   check_prepare_step(c, source);
+  check_target_e0(c, source);
   return c;
 }
 

@@ -36,6 +36,14 @@ struct PrepareConfig {
   std::uint64_t max_steps = 5'000'000;  // give up (error) after this many steps
   bool chain = false;        // each higher p0 starts from the next lower p0's sample (false: each from the cloud)
   double dt_fraction = 0.0;  // -, time step of the preparation / Rayleigh time (0: time.dt_fraction)
+  // prepare.target_e0: the void ratio asked for at p0 (one for all p0, or one per distinct tests.p0 in
+  // config order; empty: none). The preparation's friction is searched (prepare_run.cpp).
+  std::vector<double> target_e0;
+  double target_tolerance = 0.005;     // -, |e0 - target| accepted (prepare.target_e0_tolerance)
+  double max_friction = 1.0;           // -, the search's upper friction (prepare.max_friction)
+  std::uint64_t trial_count = 2000;    // spheres of the search's trial preparations (at most sample.count)
+  /// The target for p0 (NaN: none). `p0s`: the distinct tests.p0 in config order.
+  double target_for(double p0, const std::vector<double>& p0s) const;
 };
 
 /// The path of a test (tests.path); its name and needs are its row in protocol/paths.cpp.
@@ -64,9 +72,11 @@ struct ShearConfig {
   double max_axial_strain = 0.2;     // -, stop at this axial (log) strain
   double max_deviatoric_strain = 0.0;  // -, also stop at this eps_q (0: none); axial stress paths only
   bool stop_at_critical = false;     // also stop when critical state is detected
-  double critical_window = 0.05;     // -, axial strain window over which eta, p and e must be stationary (critical.hpp)
-  double critical_tolerance = 0.02;  // -, largest relative change of eta = q/p and p over the window (fitted line)
-  double critical_tolerance_e = 0.005;  // -, largest change of e over the window (fitted line)
+  double critical_window = 0.1;      // -, deviatoric strain eps_q window over which eta, p, e, Z_mech and the fabric
+                                     // anisotropy must be stationary (critical.hpp)
+  double critical_tolerance = 0.02;  // -, largest relative change (+ 2 SE) of eta = q/p, p and Z_mech over the window
+  double critical_tolerance_e = 0.005;       // -, largest change (+ 2 SE) of e over the window
+  double critical_tolerance_fabric = 0.05;   // -, largest relative change (+ 2 SE) of the fabric anisotropy F_a
   Vec3 strain_rates = Vec3::Zero();     // 1/s per axis, compression positive, for path "strain"
   Vec3 shear_rates = Vec3::Zero();      // 1/s, engineering shear rates xy xz yz (-L_ab, soil convention), path "strain"
   std::uint64_t steps = 0;              // steps of a strain-controlled stage

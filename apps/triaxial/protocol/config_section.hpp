@@ -190,5 +190,6 @@ void parse_rotation(const toml::table& root, const std::string& source, Rotation
 void check_shearing_cell(const Config& c, const std::string& source);
 void check_shear_for_tests(const Config& c, const std::string& source);
 void check_prepare_step(const Config& c, const std::string& source);
+void check_target_e0(const Config& c, const std::string& source);
 
 }  // namespace sandcell::triaxial::config_detail

@@ -30,6 +30,7 @@ void parse_shear(const toml::table& root, const std::string& source, ShearConfig
   s.number("critical_window", h.critical_window, 1e-6, 1.0, "must be in (0, 1]");
   s.number("critical_tolerance", h.critical_tolerance, 1e-9, 1.0, "must be in (0, 1]");
   s.number("critical_tolerance_e", h.critical_tolerance_e, 1e-9, 1.0, "must be in (0, 1]");
+  s.number("critical_tolerance_fabric", h.critical_tolerance_fabric, 1e-9, 1.0, "must be in (0, 1]");
   const std::vector<double> rates = s.numbers("strain_rates", "three finite rates in 1/s");
   if (!rates.empty()) {
     if (rates.size() != 3) s.fail("strain_rates", std::to_string(rates.size()) + " values", "expected 3 rates (1/s)");
@@ -198,12 +199,15 @@ void check_shear_for_tests(const Config& c, const std::string& source) {
                                      t.path == ShearPath::rotation))
       throw ConfigError(source + ": shear.stop_at_critical = true: path \"" + std::string(test_path(t.path).name) +
                         "\" has no axial strain to test critical state over; allowed: false");
+  // The window is in eps_q; the end is max_deviatoric_strain when given, else max_axial_strain (at
+  // b = 0, eps_q ~ eps_1; at larger b more: the bound is conservative).
   const double pre = CriticalTest{}.pre_strain;
-  if (stress_path && c.shear.stop_at_critical && c.shear.critical_window + pre >= c.shear.max_axial_strain)
-    throw ConfigError(source + ": shear.critical_window = " + num(c.shear.critical_window) +
-                      " with shear.max_axial_strain = " + num(c.shear.max_axial_strain) +
-                      ": shear.stop_at_critical tests critical state only after critical_window + " + num(pre) +
-                      " of axial strain; allowed: critical_window < max_axial_strain - " + num(pre) +
+  const double end = c.shear.max_deviatoric_strain > 0.0 ? c.shear.max_deviatoric_strain : c.shear.max_axial_strain;
+  const std::string end_key = c.shear.max_deviatoric_strain > 0.0 ? "max_deviatoric_strain" : "max_axial_strain";
+  if (stress_path && c.shear.stop_at_critical && c.shear.critical_window + pre >= end)
+    throw ConfigError(source + ": shear.critical_window = " + num(c.shear.critical_window) + " with shear." + end_key +
+                      " = " + num(end) + ": shear.stop_at_critical tests critical state only after critical_window + " +
+                      num(pre) + " of deviatoric strain; allowed: critical_window < " + end_key + " - " + num(pre) +
                       ", or stop_at_critical = false");
   if (c.shear.ramp_strain >= c.shear.max_axial_strain)
     throw ConfigError(source + ": shear.ramp_strain = " + num(c.shear.ramp_strain) +
@@ -230,6 +234,31 @@ void check_prepare_step(const Config& c, const std::string& source) {
                                            : "prepare.rolling_friction = " + num(p.rolling_friction);
   throw ConfigError(source + ": " + key + " = " + num(f) + " with " + why +
                     ": a frictional preparation needs prepare.dt_fraction <= 0.2 (above, it never comes to rest)");
+}
+
+// prepare.target_e0: a search over the preparation's friction (prepare_run.cpp). It sets
+// prepare.friction itself, cannot keep a chained sample's e0 (the chain sets it), and its frictional
+// trials need the frictional preparation's step (above).
+void check_target_e0(const Config& c, const std::string& source) {
+  const PrepareConfig& p = c.prepare;
+  if (p.target_e0.empty()) return;
+  std::vector<double> p0s;
+  for (const TestSpec& t : c.tests)
+    if (std::find(p0s.begin(), p0s.end(), t.p0) == p0s.end()) p0s.push_back(t.p0);
+  if (p.target_e0.size() != 1 && p.target_e0.size() != p0s.size())
+    throw ConfigError(source + ": prepare.target_e0: " + std::to_string(p.target_e0.size()) + " values for " +
+                      std::to_string(p0s.size()) + " distinct tests.p0; allowed: one value, or one per p0 in order");
+  if (p.friction > 0.0)
+    throw ConfigError(source + ": prepare.friction = " + num(p.friction) +
+                      " with prepare.target_e0: the search chooses the friction; allowed: leave it out");
+  if (p.chain)
+    throw ConfigError(source + ": prepare.chain = true with prepare.target_e0: a chained sample's e0 is set by the "
+                      "chain; allowed: chain = false (each p0 from the cloud)");
+  const double f = p.dt_fraction > 0.0 ? p.dt_fraction : c.dt_fraction;
+  if (f > k_frictional_prepare_dt)
+    throw ConfigError(source + ": " + (p.dt_fraction > 0.0 ? "prepare.dt_fraction" : "time.dt_fraction") + " = " +
+                      num(f) + " with prepare.target_e0: its trials are frictional preparations, which need "
+                      "prepare.dt_fraction <= 0.2 (above, they never come to rest)");
 }
 
 // [cyclic]: the cyclic path's bounds, count and drainage (CyclicConfig); checked against the tests'

@@ -3,62 +3,77 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <vector>
 
 namespace sandcell::triaxial {
 
 namespace {
 
-struct Line {
-  double slope;  // least-squares slope of y against x
-  double mean;   // mean of y
-};
+constexpr double k_nan = std::numeric_limits<double>::quiet_NaN();
 
-// The straight line through rows [first, n), with y given per row by `value`.
-template <class Value>
-Line fit(std::span<const double> x, std::size_t first, Value value) {
+// The least-squares line of y against x over rows [first, n), as a Trend over `window`: the change
+// slope x window and its standard error, relative to |mean y| when `relative` (critical.hpp).
+Trend trend(std::span<const double> x, std::span<const double> y, std::size_t first, double window, bool relative) {
   const std::size_t n = x.size();
+  const double count = static_cast<double>(n - first);
   double mx = 0.0, my = 0.0;
   for (std::size_t k = first; k < n; ++k) {
     mx += x[k];
-    my += value(k);
+    my += y[k];
   }
-  const double count = static_cast<double>(n - first);
   mx /= count;
   my /= count;
   double sxy = 0.0, sxx = 0.0;
   for (std::size_t k = first; k < n; ++k) {
-    sxy += (x[k] - mx) * (value(k) - my);
+    sxy += (x[k] - mx) * (y[k] - my);
     sxx += (x[k] - mx) * (x[k] - mx);
   }
-  return Line{sxx > 0.0 ? sxy / sxx : std::numeric_limits<double>::quiet_NaN(), my};
+  if (!(sxx > 0.0) || n - first < 3) return Trend{k_nan, k_nan};
+  const double slope = sxy / sxx, icpt = my - slope * mx;
+  // Residuals: their variance and lag-1 autocorrelation.
+  double ss = 0.0, lag = 0.0, prev = 0.0;
+  for (std::size_t k = first; k < n; ++k) {
+    const double r = y[k] - (slope * x[k] + icpt);
+    ss += r * r;
+    if (k > first) lag += r * prev;
+    prev = r;
+  }
+  const double r1 = ss > 0.0 ? std::clamp(lag / ss, 0.0, 0.99) : 0.0;
+  const double se_slope = std::sqrt(ss / (count - 2.0) / sxx) * std::sqrt((1.0 + r1) / (1.0 - r1));
+  const double scale = relative && my != 0.0 ? std::abs(my) : 1.0;
+  return Trend{std::abs(slope * window) / scale, se_slope * window / scale};
 }
 
 }  // namespace
 
-CriticalCheck check_critical(std::span<const double> eps1, std::span<const double> p, std::span<const double> q,
-                             std::span<const double> e, const CriticalTest& test) {
+double fabric_anisotropy(const Mat3& phi) {
+  const Mat3 dev = 7.5 * (phi - phi.trace() / 3.0 * Mat3::Identity());
+  return std::sqrt((dev.array() * dev.array()).sum());
+}
+
+CriticalCheck check_critical(const CriticalSeries& s, const CriticalTest& test) {
   CriticalCheck out;
-  const std::size_t n = eps1.size();
-  if (n == 0 || p.size() != n || q.size() != n || e.size() != n) return out;
-  const double end = eps1[n - 1];
-  std::size_t first = n - 1;
-  while (first > 0 && eps1[first - 1] >= end - test.window) --first;
-  out.rows = n - first;
-  if (end < test.window + test.pre_strain || out.rows < std::max<std::size_t>(test.min_rows, 3) ||
-      end - eps1[first] < 0.9 * test.window)
+  const std::size_t n = s.eps_q.size();
+  if (n == 0 || s.p.size() != n || s.q.size() != n || s.e.size() != n || s.z_mech.size() != n ||
+      s.fabric_anisotropy.size() != n)
     return out;
-  const auto eta = [&](std::size_t k) { return q[k] / p[k]; };
-  const auto pk = [&](std::size_t k) { return p[k]; };
-  const auto ek = [&](std::size_t k) { return e[k]; };
-  const auto relative = [&](auto value) {
-    const Line line = fit(eps1, first, value);
-    return std::abs(line.slope * test.window) / (line.mean != 0.0 ? std::abs(line.mean) : 1.0);
-  };
-  out.change_eta = relative(eta);
-  out.change_p = relative(pk);
-  out.change_e = std::abs(fit(eps1, first, ek).slope * test.window);
-  // NaN (a series that is not finite) fails every comparison: not critical.
-  out.reached = out.change_eta <= test.tolerance && out.change_p <= test.tolerance && out.change_e <= test.tolerance_e;
+  const double end = s.eps_q[n - 1];
+  std::size_t first = n - 1;
+  while (first > 0 && s.eps_q[first - 1] >= end - test.window) --first;
+  out.rows = n - first;
+  if (!(end >= test.window + test.pre_strain) || out.rows < std::max<std::size_t>(test.min_rows, 3) ||
+      !(end - s.eps_q[first] >= 0.9 * test.window))
+    return out;
+  std::vector<double> eta(n);
+  for (std::size_t k = first; k < n; ++k) eta[k] = s.q[k] / s.p[k];
+  out.eta = trend(s.eps_q, eta, first, test.window, true);
+  out.p = trend(s.eps_q, s.p, first, test.window, true);
+  out.e = trend(s.eps_q, s.e, first, test.window, false);
+  out.z = trend(s.eps_q, s.z_mech, first, test.window, true);
+  out.fabric = trend(s.eps_q, s.fabric_anisotropy, first, test.window, true);
+  // NaN (a series that is not finite, or a history from before these columns) fails every comparison.
+  out.reached = out.eta.ok(test.tolerance) && out.p.ok(test.tolerance) && out.z.ok(test.tolerance) &&
+                out.e.ok(test.tolerance_e) && out.fabric.ok(test.tolerance_fabric);
   return out;
 }
 

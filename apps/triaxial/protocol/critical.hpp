@@ -1,41 +1,66 @@
 #pragma once
 // The critical-state test the app applies while shearing (shear.stop_at_critical). It is the test
-// of `triaxial analyze` (analyze.py, detect_critical) on the same series rows, so a test the app
-// stops is one the analysis accepts:
-//   over the last `window` of axial strain, a straight line is fitted (least squares) to each of
-//   eta = q/p, p and e against eps_1; the change each line predicts over the window (slope x
-//   window) must be at most `tolerance` for eta and p (relative to their window mean) and
-//   `tolerance_e` for e (absolute); the window must hold at least `min_rows` rows spanning 90 % of
-//   it, and the test must have reached window + pre_strain.
-// A trend and not the range: the deviatoric stress of a large sample fluctuates by several per
-// cent about a stationary mean (2.5-5 % of q in every 5 % window of a 19,436-sphere test at
-// 0.5 MPa), so a test of the range (the app's test before this one) kept such a test shearing to
-// its strain limit; a line through the window's rows averages the fluctuations out.
-// (The analysis also tests eps_v; with de = -(1 + e) d eps_v, |de| <= 0.005 bounds eps_v's change
-// to 0.005 / (1 + e) < 0.004, inside the analysis's 0.005, so e alone suffices here.)
+// of `triaxial analyze` (sandcell_analysis/critical.py, detect_critical) on the same series rows,
+// so a test the app stops is one the analysis accepts (tests/analysis/test_critical_twin.py):
+//   over the last `window` of deviatoric strain eps_q (the same distortion at every b: a window in
+//   eps_1 spans about twice the eps_q at b = 1 as at b = 0), a straight line is fitted (least
+//   squares) to each of eta = q/p, p, e, the mechanical coordination number Z_mech and the fabric
+//   anisotropy F_a against eps_q. Each line's change over the window (slope x window) plus two
+//   standard errors of it must be at most its tolerance: `tolerance` for eta, p and Z_mech
+//   (relative to their window mean), `tolerance_fabric` for F_a (relative), `tolerance_e` for e
+//   (absolute). The window must hold at least `min_rows` rows spanning 90 % of it, and the test
+//   must have reached window + pre_strain of eps_q.
+// Why a trend plus its error, and not a trend alone (the test before this one): the deviatoric
+// stress of a 19,436-sphere sample fluctuates by several per cent about its mean, so a fitted line
+// through a window can be flat by chance while the sample still dilates; the first row whose
+// line happened to be flat stopped the test (48 of 50 critical tests of the full campaign passed at
+// >= 90 % of a tolerance, 42 were still dilating). Requiring the change to be small with 2 standard
+// errors to spare asks the data to show stationarity, not merely to fail to show a trend.
+// The standard error: rows 50 steps apart are serially correlated, so the least-squares error of
+// the slope is inflated by sqrt((1 + r1) / (1 - r1)), r1 the lag-1 autocorrelation of the
+// residuals clipped to [0, 0.99] (the AR(1) effective sample size).
+// F_a = sqrt(F':F'), F' = 15/2 (phi - tr(phi)/3 I), phi = <n (x) n> the contact fabric: the
+// anisotropy coefficient of the contact normal density (1 + F'_ij n_i n_j) / 4 pi (Li & Dafalias
+// 2012's normalization).
+#include "components/types.hpp"
+
 #include <cstddef>
 #include <span>
 
 namespace sandcell::triaxial {
 
 struct CriticalTest {
-  double window = 0.05;        // -, axial strain
-  double tolerance = 0.02;     // -, largest relative change of eta and p over the window
-  double tolerance_e = 0.005;  // -, largest change of e over the window
-  double pre_strain = 0.05;    // -, the test must have reached window + pre_strain
-  std::size_t min_rows = 10;   // rows in the window
+  double window = 0.1;             // -, deviatoric strain eps_q
+  double tolerance = 0.02;         // -, largest relative change (+ 2 SE) of eta, p and Z_mech over the window
+  double tolerance_e = 0.005;      // -, largest change (+ 2 SE) of e over the window
+  double tolerance_fabric = 0.05;  // -, largest relative change (+ 2 SE) of F_a over the window
+  double pre_strain = 0.2;         // -, eps_q: the test must have reached window + pre_strain
+  std::size_t min_rows = 10;       // rows in the window
+};
+
+/// One quantity's trend over the window: the fitted line's change (relative or absolute, as its
+/// tolerance) and the standard error of that change (AR(1)-inflated).
+struct Trend {
+  double change = 0.0;
+  double se = 0.0;
+  bool ok(double tolerance) const { return change + 2.0 * se <= tolerance; }  // NaN: not ok
 };
 
 struct CriticalCheck {
   bool reached = false;
-  double change_eta = 0.0;  // -, relative change over the window predicted by the fitted line
-  double change_p = 0.0;    // -, relative
-  double change_e = 0.0;    // -, absolute
-  std::size_t rows = 0;     // rows in the window
+  Trend eta, p, e, z, fabric;  // eta, p, z, fabric relative; e absolute
+  std::size_t rows = 0;        // rows in the window
 };
 
-/// The test on the end of the series (eps1 increasing; all four the same length).
-CriticalCheck check_critical(std::span<const double> eps1, std::span<const double> p, std::span<const double> q,
-                             std::span<const double> e, const CriticalTest& test);
+/// The rows of a test's series the test reads (all the same length; eps_q non-decreasing at the end).
+struct CriticalSeries {
+  std::span<const double> eps_q, p, q, e, z_mech, fabric_anisotropy;
+};
+
+/// The test on the end of the series.
+CriticalCheck check_critical(const CriticalSeries& s, const CriticalTest& test);
+
+/// F_a of a fabric tensor phi (trace 1 for a non-empty contact set).
+double fabric_anisotropy(const Mat3& phi);
 
 }  // namespace sandcell::triaxial
