@@ -330,12 +330,16 @@ def plastic_dilatancy(eps_v, eps_q, p, q, others=None, rel=0.25, h_min=2e-4, min
     return out
 
 
-def phase_transformation(d, mask, values):
+def phase_transformation(d, mask, values, end=None):
     """The phase transformation: the first kept point where d turns from contraction (d > 0) to
     dilation (d < 0), interpolated linearly between the two points. values: dict of arrays (eta,
     psi, ...) interpolated there. Returns a dict (index, and each value) or None when d never turns
-    (a loose sample that contracts to the critical state, or one dilating from its first point)."""
+    (a loose sample that contracts to the critical state, or one dilating from its first point).
+    end: only points up to this index are searched (the peak of eta: past it, d fluctuates about 0
+    at the critical state, where a sign change is noise at psi ~ 0, not a phase transformation)."""
     idx = np.nonzero(mask)[0]
+    if end is not None:
+        idx = idx[idx <= end]
     if idx.size < 2:
         return None
     dd = np.asarray(d, float)[idx]
