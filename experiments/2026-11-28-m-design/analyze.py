@@ -125,7 +125,8 @@ def main(argv=None):
               f"eta* {r['eta_star']:.3f} psi {r['psi_state']:+.3f} steady end {r['steady_end']}")
     for cell, fit in fits.items():
         print(f"{cell}: e_c {fit['e_c']:.4f} M {fit['M']:.3f}: m = {fit['m']:.3g}, 95 % [{fit['interval'][0]:.3g}, "
-              f"{fit['interval'][1]:.3g}] (n {fit['n']}, psi span {fit['psi_span']:.3f}): {fit['verdict']} {fit['note']}")
+              f"{fit['interval'][1]:.3g}] (n {fit['n']}, psi span {fit['psi_span']:.3f}): {fit['verdict']} "
+              f"{fit['note']}")
     return 0
 
 
