@@ -186,7 +186,7 @@ def test_m_theta_figure(campaign):
 
 def test_dilatancy_figure_keeps_the_first_rows(campaign):
     _, tests = campaign
-    _, Mc, K, _ = sf.dilatancy_inputs(tests, 0.005)
+    _, Mc, K, _ = sf.dilatancy_inputs(tests, "none")  # the caricature has no elastic part
     ts = [t for t in tests if t["path"] == SEEDED[0] and t["p0"] == SEEDED[2]]
     for t in ts:  # the first 1 % is not cut
         assert t["study_dil"]["eps1"][0] < 0.002 and t["study_dil"]["eps1"][0] == t["eps1"][0]
@@ -208,7 +208,7 @@ def test_command_writes_figures_with_their_command(campaign, tmp_path):
     from PIL import Image
     dirs, _ = campaign
     out = str(tmp_path / "figs")
-    argv = [*dirs, "--out", out, "--p0", "500000"]
+    argv = [*dirs, "--out", out, "--p0", "500000", "--moduli", "none"]
     r = subprocess.run(command("figures") + argv, capture_output=True, text=True, timeout=300)
     assert r.returncode == 0, r.stderr
     pngs = sorted(f for f in os.listdir(out) if f.endswith(".png"))
@@ -231,7 +231,7 @@ def test_no_critical_point_still_draws(campaign, tmp_path):
     Figs 4 and 6 with the study's curves only, and no model."""
     _, tests = campaign
     running = [dict(t, status="running") for t in tests if t["p0"] == SEEDED[2]]
-    files = sf.draw_all(running, str(tmp_path), "the command")
+    files = sf.draw_all(running, str(tmp_path), "the command", moduli="none")
     assert len(files) == 2 + 2 * 2
     fig = sf.fig_m_theta(running)
     assert len(fig.axes[0].containers) == 0 and len(_curves(fig.axes[0])) == 1

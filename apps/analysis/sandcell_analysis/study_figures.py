@@ -1,6 +1,6 @@
 """The study's figures redrawn from sandcell results: Liu, Ma, Zhou & Chang (2017), Figs 2-4, 6 and 8-12.
 
-    python -m sandcell_analysis figures RESULTS... --out DIR [--p0 P] [--smooth W]
+    python -m sandcell_analysis figures RESULTS... --out DIR [--p0 P] [--moduli initial|none]
 
 RESULTS are results files or folders of them (several folders: seeds of one campaign, e.g.
 decisive/fixed-s2017 decisive/fixed-s2018). Tests with the same (path, b, p0) are seeds of one test:
@@ -174,22 +174,26 @@ def phi22_Mc_K(phi_deg=None):
 # ---------------------------------------------------------------- the adapters (APIs being changed)
 
 def critical_of(test):
-    """ADAPTER to critical.py (its window is moving to eps_q: update here only): the critical-state
-    test of a test's series with the package's defaults, detect_critical's dict (reached, point)."""
-    return detect_critical(test["eps1"], test)
+    """ADAPTER to critical.py: the critical-state test (version 2: the last 0.1 of eps_q) of a test's
+    series with the package's defaults, detect_critical's dict (reached, point)."""
+    return detect_critical(test["eps_q"], test)
 
 
-def dilatancy(test, cpar, smooth, fit_from=FIT_FROM):
-    """ADAPTER to dilatancy.py (its API is changing: update here only). The test's dilatancy series over
-    every row: dict eta, d, psi, theta, eps1 and fit (rows the model is fitted on: eps_1 >= fit_from)."""
-    from .dilatancy import dilatancy_series
-    dl = dilatancy_series(test["eps1"], test["eps_v"], test["eps_q"], smooth=smooth, min_strain=0.0,
-                          others={k: test[k] for k in ("eta", "p", "e", "theta")}, stress=test.get("stress"))
+def dilatancy(test, cpar, moduli="initial", fit_from=FIT_FROM):
+    """ADAPTER to dilatancy.py: the test's plastic dilatancy (the elastic parts removed with its own
+    moduli, strain-adaptive smoothing, no strain cut: dilatancy.plastic_dilatancy) over every kept
+    row: dict eta, d, psi, theta, eps1 and fit (rows the model is fitted on: eps_1 >= fit_from).
+    moduli: "initial" (each test's own), or "none" (total increments: records without an elastic
+    part, as `analyze --moduli none`)."""
+    from .dilatancy import plastic_dilatancy
+    none = {"K": NAN, "G": NAN, "rows": 0, "note": "--moduli none"} if moduli == "none" else None
+    dl = plastic_dilatancy(test["eps_v"], test["eps_q"], test["p"], test["q"],
+                           others={k: test[k] for k in ("eta", "p", "e", "theta")}, moduli=none)
     psi = dl["e"] - csl_e(dl["p"], cpar["e_gamma"], cpar["lambda"], cpar["xi"])
     keep = dl["mask"]
     return {"eta": dl["eta"][keep], "d": dl["d"][keep], "psi": psi[keep], "theta": dl["theta"][keep],
             "eps1": test["eps1"][keep], "fit": test["eps1"][keep] >= fit_from,
-            "increments": "total"}
+            "increments": "total" if moduli == "none" else "plastic"}
 
 
 def dilatancy_model(zero, Mc, K):
@@ -391,7 +395,7 @@ def fig_m_theta(tests):
     return fig
 
 
-def dilatancy_inputs(tests, smooth):
+def dilatancy_inputs(tests, moduli="initial"):
     """Each test's dilatancy (the adapter), psi from the CSL fitted (xi free) on the critical tests (the
     study's CSL if it cannot be fitted); M_c and K of the fitted g(theta). Returns (cpar, Mc, K, note)."""
     crit = critical_tests(tests)
@@ -404,7 +408,7 @@ def dilatancy_inputs(tests, smooth):
         K = 1.0
         note += "K = 1 (g(theta) not fitted); "
     for t in tests:
-        t["study_dil"] = dilatancy(t, cpar, smooth)
+        t["study_dil"] = dilatancy(t, cpar, moduli)
     return cpar, Mc, K, note
 
 
@@ -448,7 +452,7 @@ def fig_dilatancy(tests, path, p0, Mc, K, note=""):
                     ha="right", va="top", fontsize=7)
     ax.axhline(0, color="0.6", lw=0.8)
     ax.set_xlabel("stress ratio eta = q/p")
-    ax.set_ylabel("dilatancy d = d eps_v / d eps_q (total increments), compression +")
+    ax.set_ylabel("dilatancy d = d eps_v^p / d eps_q^p (plastic increments), compression +")
     ax.grid(True, alpha=0.3)
     ax.legend(fontsize=7, loc="lower left")
     ax.set_title(f"Figs 8-12: {PATH_LABEL.get(path, path)}, p0 = {p0 / 1e6:g} MPa, every b, from the first row\n"
@@ -481,7 +485,7 @@ def p0_tag(p0):
     return f"p0_{p0 / 1e3:g}kPa"
 
 
-def draw_all(tests, out, command, p0s=None, smooth=0.005):
+def draw_all(tests, out, command, p0s=None, moduli="initial"):
     """Every figure of the study for the tests (read_test dicts with status and critical); returns the
     file names. `command` (the command line that redraws them) goes into each PNG and README.md."""
     os.makedirs(out, exist_ok=True)
@@ -494,7 +498,7 @@ def draw_all(tests, out, command, p0s=None, smooth=0.005):
         save(fig_stress_strain(tests, path, p0), out, f"stress_strain-{path}-{p0_tag(p0)}", command, files)
     save(fig_csl(tests), out, "csl", command, files)
     save(fig_m_theta(tests), out, "m_theta", command, files)
-    _, Mc, K, note = dilatancy_inputs(tests, smooth)
+    _, Mc, K, note = dilatancy_inputs(tests, moduli)
     for path, p0 in pairs:
         save(fig_dilatancy(tests, path, p0, Mc, K, note), out, f"dilatancy-{path}-{p0_tag(p0)}", command, files)
     seeds = max(len(ts) for ts in seed_groups(tests).values())
@@ -506,8 +510,8 @@ def draw_all(tests, out, command, p0s=None, smooth=0.005):
             "m_theta": "Fig 6: critical q/p against the Lode angle and in the pi-plane: the fitted g(theta), "
                        f"g(theta) derived from phi = {STUDY['phi_deg']:g} deg (not the study's fit), Matsuoka-Nakai "
                        "and Lade-Duncan through the b = 0 point",
-            "dilatancy": "Figs 8-12: d = d eps_v / d eps_q (total increments) against eta, one p0, every b, from the "
-                         "first row (the pre-peak loop; triangle: the peak of q/p, its turning point), DEM against "
+            "dilatancy": "Figs 8-12: d = d eps_v^p / d eps_q^p (plastic increments) against eta, one p0, every b, "
+                         "from the first row (the pre-peak loop; triangle: the peak of q/p, its turning point), DEM against "
                          "Li's 3D form with d0, m fitted on the path's b = 0 tests at eps_1 >= 1 %"}
     with open(os.path.join(out, "README.md"), "w", encoding="utf-8") as fh:
         fh.write("# The study's figures (Liu, Ma, Zhou & Chang 2017), redrawn\n\n"
@@ -531,12 +535,13 @@ def main(argv=None):
     ap.add_argument("--out", required=True, help="output folder")
     ap.add_argument("--p0", type=float, action="append",
                     help="draw Figs 2-3 and 8-12 for this p0 only (Pa; repeatable)")
-    ap.add_argument("--smooth", type=float, default=0.005,
-                    help="dilatancy smoothing window, axial strain (0.005: keeps the pre-peak loop)")
+    ap.add_argument("--moduli", choices=("initial", "none"), default="initial",
+                    help="the elastic parts removed from the dilatancy's increments: each test's initial moduli, "
+                         "or none (total increments)")
     opt = ap.parse_args(argv)
     command = shlex.join(["PYTHONPATH=apps/analysis", "python3", "-m", "sandcell_analysis", "figures", *argv])
     try:
-        files = draw_all(load_tests(opt.results), opt.out, command, opt.p0, opt.smooth)
+        files = draw_all(load_tests(opt.results), opt.out, command, opt.p0, opt.moduli)
     except InputError as exc:
         print(f"{PROG}: error: {exc}", file=sys.stderr)
         return 2
