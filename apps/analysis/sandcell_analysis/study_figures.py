@@ -511,8 +511,8 @@ def draw_all(tests, out, command, p0s=None, moduli="initial"):
                        f"g(theta) derived from phi = {STUDY['phi_deg']:g} deg (not the study's fit), Matsuoka-Nakai "
                        "and Lade-Duncan through the b = 0 point",
             "dilatancy": "Figs 8-12: d = d eps_v^p / d eps_q^p (plastic increments) against eta, one p0, every b, "
-                         "from the first row (the pre-peak loop; triangle: the peak of q/p, its turning point), DEM against "
-                         "Li's 3D form with d0, m fitted on the path's b = 0 tests at eps_1 >= 1 %"}
+                         "from the first row (the pre-peak loop; triangle: the peak of q/p, its turning point), "
+                         "DEM against Li's 3D form with d0, m fitted on the path's b = 0 tests at eps_1 >= 1 %"}
     with open(os.path.join(out, "README.md"), "w", encoding="utf-8") as fh:
         fh.write("# The study's figures (Liu, Ma, Zhou & Chang 2017), redrawn\n\n"
                  f"Redrawn by (from the repository root; `study_figures.py`):\n\n```sh\n{command}\n```\n\n"
