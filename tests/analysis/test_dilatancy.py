@@ -304,3 +304,24 @@ class IdentifyM(unittest.TestCase):
         self.assertLess(r["interval"][1] - r["interval"][0], 4.57)
         psi, eta = states([(p0, -0.2) for p0 in (0.5e6, 1e6, 2e6, 4e6, 8e6, 16e6)])
         self.assertEqual(dilatancy.fit_m_pt(psi, eta, MC_TRUE)["verdict"], "not identifiable")
+
+
+def test_phase_transformation_is_sought_before_the_peak_only():
+    """A dense test dilates from its first plastic point (d < 0) and, past its peak, d crosses 0
+    back and forth at the critical state: with end = the peak there is no phase transformation
+    (without it, a noise crossing at psi ~ 0 was taken for one). A medium test that contracts, then
+    dilates before its peak keeps its phase transformation, interpolated at d = 0 exactly."""
+    from sandcell_analysis.dilatancy import phase_transformation
+    n = 200
+    eta = np.concatenate([np.linspace(0.2, 1.4, 60), np.linspace(1.4, 0.95, 140)])
+    peak = 59
+    d_dense = np.concatenate([np.linspace(-0.2, -0.8, 60), 0.05 * np.sin(np.arange(140))])
+    mask = np.ones(n, bool)
+    assert phase_transformation(d_dense, mask, {"eta": eta})["index"] > peak  # the defect, without end
+    assert phase_transformation(d_dense, mask, {"eta": eta}, end=peak) is None
+    d_medium = np.concatenate([np.linspace(0.3, -0.6, 60), 0.05 * np.sin(np.arange(140))])
+    pt = phase_transformation(d_medium, mask, {"eta": eta}, end=peak)
+    k = pt["index"]
+    assert k < peak and d_medium[k] > 0 >= d_medium[k + 1]
+    w = d_medium[k] / (d_medium[k] - d_medium[k + 1])
+    assert abs(pt["eta"] - (eta[k] + w * (eta[k + 1] - eta[k]))) < 1e-12  # linear interpolation at d = 0

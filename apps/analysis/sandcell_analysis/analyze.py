@@ -181,14 +181,17 @@ def _group_states(tests, csl, opt):
 
 
 def _characteristic_state(t, slope):
-    """The test's state for m: its phase transformation (d = 0) where d turns, else its peak stress
+    """The test's state for m: its phase transformation (d = 0) where d turns before the peak of eta
+    (past it d crosses 0 by noise at the critical state, psi ~ 0: not a phase transformation), else its peak stress
     ratio (the largest smoothed eta among the kept points) with eta* = eta - d/s (s < 0: the
     group's initial slope of d against eta; for Li & Dafalias, M e^{m psi} = eta - d/s at any
     state, eta at d = 0)."""
     dl = t["dil"]
     mk = dl["mask"]
+    kept = np.nonzero(mk)[0]
+    peak = int(kept[int(np.nanargmax(dl["eta"][kept]))]) if kept.size and np.any(np.isfinite(dl["eta"][kept])) else None
     pt = phase_transformation(dl["d"], mk, {"eta": dl["eta"], "psi": dl["psi"], "eps_q": t["eps_q"],
-                                            "p": dl["p"]})
+                                            "p": dl["p"]}, end=peak)
     if pt is not None:
         return {"kind": "phase transformation", "eta": pt["eta"], "psi": pt["psi"], "d": 0.0,
                 "eta_star": pt["eta"], "eps_q": pt["eps_q"]}
