@@ -17,7 +17,11 @@ AFFINE = diag(eps, -eps/2, -eps/2) (compression positive, eps_q = eps per increm
               shear gamma = BAND_GAMMA eps and the dilation delta = BAND_DELTA (inside, in the band's thickness).
               Over the INCREMENTS increments its void ratio grows ~0.11 above the outside's, as in the
               committed b = 0.5 bands at 19,436 spheres (0.09-0.15 over their whole tests).
-sample(kind, n, seed) returns the snapshots as localization.judge_test takes them and a series.
+sample(kind, n, seed) returns the snapshots as localization.judge_test takes them and a series. With tilt = (t_xy, t_xz,
+t_yz) the cell also shears, as a free cell does: at snapshot k its basis is upper triangular with the tilts k t_xy L_1,
+k t_xz L_1, k t_yz L_2 (a few per cent of a length over the test), the particles' reduced coordinates s = C^-1 x carried
+by it and the non-affine fields defined on s as before (the band's normal is then the reciprocal lattice vector of its
+mode); the first snapshot's cell is orthorhombic (its lengths), the later ones are matrices (localization's cell).
 """
 import math
 
@@ -73,12 +77,15 @@ def smooth_field(s, L, rng, ell, grid=32):
 
 def band_displacement(s, L, width):
     """The band's non-affine displacement per unit gamma and delta: (P(xi) t d, P(xi) n d), xi = frac(s . hkl),
-    d the mode's plane spacing, P' = 1 - w/d inside |xi - 0.5| < w / 2d and -w/d outside (zero net jump)."""
+    d the mode's plane spacing, P' = 1 - w/d inside |xi - 0.5| < w / 2d and -w/d outside (zero net jump). L: the
+    cell's lengths, or its matrix C (a sheared cell: the normal C^-T hkl)."""
     h = np.array(HKL, float)
-    nrm = h / L
+    nrm = h / L if np.ndim(L) == 1 else np.linalg.solve(np.asarray(L, float).T, h)
     d = 1.0 / np.linalg.norm(nrm)
     n = nrm * d
     t = np.array([-n[2], 0.0, n[0]])  # in the band plane, the sign that shortens axis 1 (adds to the affine part)
+    if np.ndim(L) == 2:
+        t /= np.linalg.norm(t)  # a unit vector (already one in an orthorhombic cell, where n_2 = 0)
     xi = (s @ h) % 1.0
     f = width * D50 / d
     y = xi - 0.5
@@ -88,11 +95,20 @@ def band_displacement(s, L, width):
     return P[:, None] * t * d, P[:, None] * n * d
 
 
-def sample(kind, n, seed, width=5.0, ell=ELL):
-    """(snapshots [(step, ids, positions, cell lengths, radii)], series {step, strain, e}) of a synthetic test of
-    `kind` ("noise", "gaussian", "band") with n spheres; width: the band's (d50)."""
+def sheared_cell(lengths, tilt, k):
+    """The cell matrix of snapshot k: lengths on the diagonal, tilts k (t_xy L_1, t_xz L_1, t_yz L_2)."""
+    t = k * np.asarray(tilt, float) * lengths[[0, 0, 1]]
+    return np.array([[lengths[0], t[0], t[1]], [0.0, lengths[1], t[2]], [0.0, 0.0, lengths[2]]])
+
+
+def sample(kind, n, seed, width=5.0, ell=ELL, tilt=None):
+    """(snapshots [(step, ids, positions, cell lengths or matrix, radii)], series {step, strain, e}) of a synthetic test
+    of `kind` ("noise", "gaussian", "band") with n spheres; width: the band's (d50); tilt: the cell's tilts per
+    increment as fractions of its lengths (None: an orthorhombic cell)."""
     if kind not in ("noise", "gaussian", "band"):
         raise ValueError(f"kind: {kind!r}, expected noise, gaussian or band")
+    if tilt is not None:
+        return sheared_sample(kind, n, seed, width, ell, tilt)
     rng = np.random.default_rng(seed)
     s, r, L = packing(n, rng)
     affine = np.array([EPS, -0.5 * EPS, -0.5 * EPS])
@@ -115,4 +131,35 @@ def sample(kind, n, seed, width=5.0, ell=ELL):
         series["step"].append(1000.0 * k)
         series["strain"].append(affine * k)
         series["e"].append(np.prod(cell) / (4.0 / 3.0 * np.pi * r ** 3).sum() - 1.0)
+    return snaps, {key: np.asarray(v, float) for key, v in series.items()}
+
+
+def sheared_sample(kind, n, seed, width, ell, tilt):
+    """sample's test in a cell that shears by `tilt` per increment: the same packing, affine increments and non-affine
+    fields (drawn in the same order from the same seed), carried by the sheared cell."""
+    rng = np.random.default_rng(seed)
+    s, r, L = packing(n, rng)
+    affine = np.array([EPS, -0.5 * EPS, -0.5 * EPS])
+    ids = np.arange(n) + 1
+    snaps, series = [], dict(step=[], strain=[], e=[])
+    lengths = np.full(3, L)
+    cell = sheared_cell(lengths, tilt, 0)
+    x = s @ cell.T
+    for k in range(INCREMENTS + 1):
+        if k:
+            lengths_b = lengths * np.exp(-affine)
+            cell_b = sheared_cell(lengths_b, tilt, k)
+            s = np.linalg.solve(cell, x.T).T
+            u = NOISE * D50 * rng.standard_normal((n, 3))
+            if kind == "gaussian":
+                u += SMOOTH * D50 * smooth_field(s % 1.0, lengths, rng, ell * D50)
+            elif kind == "band":
+                shear, dil = band_displacement(s, cell, width)
+                u += BAND_GAMMA * EPS * shear + BAND_DELTA * dil
+            x = s @ cell_b.T + u
+            lengths, cell = lengths_b, cell_b
+        snaps.append((1000 * k, ids, x.copy(), cell.copy() if k else lengths.copy(), r))
+        series["step"].append(1000.0 * k)
+        series["strain"].append(affine * k)
+        series["e"].append(np.prod(lengths) / (4.0 / 3.0 * np.pi * r ** 3).sum() - 1.0)
     return snaps, {key: np.asarray(v, float) for key, v in series.items()}
