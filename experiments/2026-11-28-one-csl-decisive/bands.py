@@ -14,8 +14,11 @@ and free cells judged by the same method, a sheared cell in its reduced coordina
 of the first increment that detects the band) and persistence (the later increments that detect it again in the
 same mode), and over the last 0.1 of eps_q (the critical-state window: the snapshots there) the mean void ratio of
 the band's slabs (e_in), of the rest (e_out) and of all (e_global, which is the series' e to round-off); e_in and e_out
-are empty when the test is not banded. status is the results file's (running when it has none yet); eps_q_end the
-last snapshot's; file: the results file, relative to RUN_ROOT (decisive) or FREE_CELL_OUT.
+are empty when the test is not banded; e_in_candidate and e_out_candidate are the same means over the candidate
+mode's slabs whatever the verdict (read them only with it: for a test not banded they are the slabs of its strongest
+mode, not a band's); window_detected: the part of the snapshot increments in the window that detect a band in that
+mode. status is the results file's (running when it has none yet); eps_q_end the last snapshot's; file: the results
+file, relative to RUN_ROOT (decisive) or FREE_CELL_OUT.
 
 Writes bands.csv and prints one line per test. About 2-10 s a test on one core.
 """
@@ -37,8 +40,8 @@ from sandcell_analysis.results import InputError, attr, open_results  # noqa: E4
 
 MIN_SNAPSHOTS = 4   # three increments at least (as the synthetic tests): an onset and two later ones
 COLUMNS = ["campaign", "cell", "seed", "b", "p0_kPa", "status", "snapshots", "eps_q_end", "verdict", "mode",
-           "normal_angle_deg", "onset_eps_q", "persistence", "window_eps_q", "window_snapshots", "e_in", "e_out",
-           "e_global", "file"]
+           "normal_angle_deg", "onset_eps_q", "persistence", "window_eps_q", "window_snapshots", "window_detected",
+           "e_in", "e_out", "e_global", "e_in_candidate", "e_out_candidate", "file"]
 
 
 def tests(decisive, free_cell):
@@ -80,7 +83,9 @@ def judge(campaign, cell, seed, path, name):
                mode=f"({v['mode_h']},{v['mode_k']},{v['mode_l']})", normal_angle_deg=fmt(v["normal_angle_deg"], 1),
                onset_eps_q=fmt(v["onset_eps_q"], 3), persistence=fmt(v["persistence"], 2),
                window_eps_q=f"{v['window_from']:.3f}-{v['eps_q_end']:.3f}", window_snapshots=v["window_snapshots"],
-               e_in=fmt(v["e_in"]), e_out=fmt(v["e_out"]), e_global=fmt(v["e_global"]))
+               window_detected=fmt(v["window_detected"], 2), e_in=fmt(v["e_in"]), e_out=fmt(v["e_out"]),
+               e_global=fmt(v["e_global"]), e_in_candidate=fmt(v["e_in_candidate"]),
+               e_out_candidate=fmt(v["e_out_candidate"]))
     return row
 
 

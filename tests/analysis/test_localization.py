@@ -590,10 +590,13 @@ def test_sheared_files_and_end_void_ratios(tmp_path):
     assert v["e_out"] == pytest.approx(np.mean([r["e_outside"] for r in prof["rows"]]), rel=1e-12)
     assert v["e_in"] > v["e_global"] > v["e_out"], "the band dilates, the outside compacts"
     assert v["e_global"] == pytest.approx(v["e_series"], abs=1e-12), "all slabs: the series' e"
+    assert (v["e_in_candidate"], v["e_out_candidate"]) == (v["e_in"], v["e_out"])
+    assert v["window_detected"] == 1.0, "every increment in the window detects the band in its mode"
     # a file without a band: NaN inside and outside, e_global still the cell's
     snaps, series = syn.sample("noise", 4000, 7003, tilt=tilt)
     plain = str(tmp_path / "noise.h5")
     write_sheared(plain, snaps, series)
     v = loc.band_void_ratios(plain)
     assert not v["banded"] and math.isnan(v["e_in"]) and math.isnan(v["e_out"])
+    assert math.isfinite(v["e_in_candidate"]) and math.isfinite(v["e_out_candidate"]) and v["window_detected"] == 0.0
     assert v["e_global"] == pytest.approx(v["e_series"], abs=1e-12)

@@ -52,7 +52,9 @@ were read.
 --void-ratios: also <stem>-localization-void.csv (band_void_ratios, one row): the verdict, the band's
 mode and normal, its onset and persistence, and over the critical-state window (the snapshots within the
 last 0.1 of eps_q) the mean void ratio of the band's slabs (e_in), of the other slabs (e_out), both empty
-(NaN) when the file is not banded, and of all (e_global, the series' e to round-off).
+(NaN) when the file is not banded, and of all (e_global, the series' e to round-off); also the same two
+means over the candidate mode's slabs whatever the verdict (e_in_candidate, e_out_candidate) and the part of
+the window's increments that detect the band in that mode (window_detected).
 
 Band profile and verdict (whatever --whole says): is there a band, and is it denser or looser than the
 rest? The strongest mode (h, k, l) of the whole-test increment (first snapshot to last) is the file's
@@ -598,8 +600,8 @@ def judge_test(snaps, series, G, K=SLABS, whole=False, log=None):
 
 END_WINDOW = 0.1      # band_void_ratios: the critical-state window, the last 0.1 of eps_q
 VOID_COLUMNS = ["banded", "why", "mode_h", "mode_k", "mode_l", "normal_angle_deg", "onset_step", "onset_eps_q",
-                "persistence", "persistent", "eps_q_end", "window_from", "window_snapshots", "e_in", "e_out",
-                "e_global", "e_series"]
+                "persistence", "persistent", "eps_q_end", "window_from", "window_snapshots", "window_detected", "e_in",
+                "e_out", "e_global", "e_series", "e_in_candidate", "e_out_candidate"]
 
 
 def eps_q_series(path):
@@ -617,9 +619,11 @@ def end_void_ratios(res, step, eps_q, window=END_WINDOW):
     over the snapshots in the critical-state window (eps_q within `window` of the last snapshot's), the means of the
     void ratio of the band's slabs (e_in), of the other slabs (e_out) and of all (e_global; e_series: the series' e
     there), with the detector's verdict, the band's mode and normal (its angle to axis 1), onset (the first snapshot
-    increment that detects the band: its later step, and eps_q at its midpoint) and persistence. e_in and e_out are
-    NaN when the file is not banded (the candidate mode's slabs are no band); all three are NaN without a band profile
-    (no radii)."""
+    increment that detects the band: its later step, and eps_q at its midpoint) and persistence, and window_detected:
+    the part of the increments in the window (their midpoint's eps_q) that detect a band in the file's mode. e_in and
+    e_out are NaN when the file is not banded (the candidate mode's slabs are no band); e_in_candidate and
+    e_out_candidate are the same means for the candidate mode's slabs whatever the verdict (to be read only with
+    it); all are NaN without a band profile (no radii)."""
     b = res["band"]
     rows = res["rows"]
     k0, frac, persistent = res["onset"]
@@ -628,17 +632,24 @@ def end_void_ratios(res, step, eps_q, window=END_WINDOW):
                onset_eps_q=float(np.interp(0.5 * (rows[k0]["step_a"] + rows[k0]["step_b"]), step, eps_q))
                if k0 is not None else math.nan,
                persistence=frac, persistent=int(bool(persistent)), eps_q_end=math.nan, window_from=math.nan,
-               window_snapshots=0, e_in=math.nan, e_out=math.nan, e_global=math.nan, e_series=math.nan)
+               window_snapshots=0, window_detected=math.nan, e_in=math.nan, e_out=math.nan, e_global=math.nan,
+               e_series=math.nan, e_in_candidate=math.nan, e_out_candidate=math.nan)
     if b["rows"] is None:
         return out
     q = np.interp([r["step"] for r in b["rows"]], step, eps_q)
     keep = q >= q[-1] - window
     sel = [r for r, k in zip(b["rows"], keep) if k]
+    mid = np.interp([0.5 * (r["step_a"] + r["step_b"]) for r in rows], step, eps_q)
+    late = [r for r, m in zip(rows, mid) if m >= q[keep][0]]
+    same = [r["band_detected"] and tuple(r[c] for c in ("mode_h", "mode_k", "mode_l")) == tuple(b["hkl"]) for r in late]
     out.update(eps_q_end=float(q[-1]), window_from=float(q[keep][0]), window_snapshots=len(sel),
+               window_detected=float(np.mean(same)) if same else math.nan,
                e_global=float(np.mean([r["e_whole"] for r in sel])),
-               e_series=float(np.mean([r["e_series"] for r in sel])))
+               e_series=float(np.mean([r["e_series"] for r in sel])),
+               e_in_candidate=float(np.mean([r["e_band"] for r in sel])),
+               e_out_candidate=float(np.mean([r["e_outside"] for r in sel])))
     if b["banded"]:
-        out.update(e_in=float(np.mean([r["e_band"] for r in sel])), e_out=float(np.mean([r["e_outside"] for r in sel])))
+        out.update(e_in=out["e_in_candidate"], e_out=out["e_out_candidate"])
     return out
 
 
