@@ -16,6 +16,7 @@ import sys
 
 import h5py
 import numpy as np
+import pytest
 
 from sandcell_analysis import localization as loc
 
@@ -437,3 +438,165 @@ def test_local_strain_and_command(tmp_path):
     assert r.returncode == 2 and "one.h5" in r.stderr and "snapshot_interval" in r.stderr, \
         f"one snapshot: exit {r.returncode}, {r.stderr!r}"
     assert not os.path.exists(os.path.join(tmp, "one-localization.csv")), "outputs written for a bad input"
+
+
+def upper(lengths, tilt):
+    """The cell matrix C (columns the edges) of lengths and tilts (xy, xz, yz), as components/cell.hpp's upper()."""
+    return np.array([[lengths[0], tilt[0], tilt[1]], [0.0, lengths[1], tilt[2]], [0.0, 0.0, lengths[2]]])
+
+
+def test_sheared_cell_identities():
+    """The sheared cell's geometry (docs/physics.md section 1: x = C s, C upper triangular) against identities.
+    1. s = C^-1 x inverts x = C s (round-off: |x - C s| / |x| ~ 1e-16; 1e-14 allowed).
+    2. The affine part: a pure simple shear F (x' = x + g z) has the Hencky strain ln V = (1/2) ln(F F^T) with
+       principal values +-asinh(g / 2) and trace 0 (it keeps the volume); for diagonal cells it is diag(ln(L_b / L_a))
+       exactly.
+    3. A purely affine increment of a sheared cell (the particles carried by it, no non-affine motion): every
+       particle's non-affine displacement is 0 to round-off and every bin's local strain is -(the affine Hencky
+       strain), the compression-positive macroscopic increment; read as orthorhombic (the lengths alone, what the
+       reader refused before) the cell's shear would show as a non-affine displacement of order g L.
+    4. The minimum image: a particle moved by a lattice vector C_b m of its snapshot's cell has the same
+       displacement.
+    5. The mode geometry: xi = frac(s . hkl) grows by exactly 1 over the plane spacing d along the unit normal
+       n = C^-T hkl d and not at all along the planes.
+    6. The slab volumes of the sheared cell's mode sum to the spheres' volume (round-off) and their void ratios to
+       the cell's, V = L_1 L_2 L_3 (det C) over the solid."""
+    rng = np.random.default_rng(11)
+    L = np.array([0.10, 0.12, 0.15])
+    C = upper(L, (0.004, -0.006, 0.005))
+    s = rng.random((5000, 3))
+    x = s @ C.T
+    assert np.abs(loc.reduced(x, C) - s).max() < 1e-14
+    # 2. the Hencky strain of a simple shear
+    g = 0.05
+    H = loc.affine_strain(np.eye(3), np.array([[1.0, 0.0, g], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]]))
+    w = np.sort(np.linalg.eigvalsh(H))
+    assert w == pytest.approx([-math.asinh(g / 2), 0.0, math.asinh(g / 2)], abs=1e-15)
+    assert np.trace(H) == pytest.approx(0.0, abs=1e-16)
+    assert np.array_equal(loc.affine_strain(L, L * 1.01), np.diag(np.log(L * 1.01 / L)))
+    # 3. a purely affine increment of a sheared cell
+    Cb = upper(L * np.exp(-np.array([0.02, -0.01, -0.01])), (0.007, -0.011, 0.009))
+    ids = np.arange(len(s))
+    xb = loc.reduced(x, C) @ Cb.T
+    deps, ia, s_a, u = loc.increment_field(ids, x, C, ids, xb, Cb, 8)
+    assert np.abs(u).max() < 1e-15 * L.max() * 10
+    macro = -loc.affine_strain(C, Cb)
+    assert np.abs(deps - macro).max() < 1e-12 * np.abs(macro).max()
+    _, _, u_ortho = loc.non_affine(ids, x, L, ids, xb, np.diag(Cb))
+    assert np.abs(u_ortho).max() > 1e-3, "the lengths alone must misread the cell's shear"
+    # 4. the minimum image: lattice shifts of some particles at b change nothing
+    m = rng.integers(-1, 2, (len(s), 3))
+    _, _, u_shift = loc.non_affine(ids, x, C, ids, xb + m @ Cb.T, Cb)
+    assert np.abs(u_shift - u).max() < 1e-15 * L.max() * 10
+    # 5. the mode's planes
+    for hkl in ((1, 0, 1), (1, -2, 2), (0, 1, 0)):
+        d, n = loc.mode_geometry(C, hkl)
+        assert np.linalg.norm(n) == pytest.approx(1.0, abs=1e-15)
+        xi0 = x[:50] @ np.linalg.solve(C.T, np.array(hkl, float))  # s . hkl, unwrapped
+        xi1 = (x[:50] + d * n) @ np.linalg.solve(C.T, np.array(hkl, float))
+        assert np.abs(xi1 - xi0 - 1.0).max() < 1e-12
+        inplane = np.cross(n, rng.standard_normal(3))
+        xi2 = (x[:50] + inplane) @ np.linalg.solve(C.T, np.array(hkl, float))
+        assert np.abs(xi2 - xi0).max() < 1e-12
+        # the reduced-coordinate form used by the slabs is the same xi, wrapped
+        assert np.abs(loc.mode_coordinate(x[:50], C, hkl) - xi0 % 1.0).max() < 1e-12
+    # 6. the slab volumes of a sheared cell
+    r = rng.uniform(1e-3, 3e-3, len(s))
+    for hkl, K in (((1, 0, 1), 10), ((1, -2, 2), 7)):
+        solid = loc.slab_solid_volumes(x, r, C, hkl, K)
+        total = (4.0 / 3.0 * np.pi * r ** 3).sum()
+        assert solid.sum() == pytest.approx(total, rel=1e-12)
+        V = loc.cell_volume(C)
+        assert V == pytest.approx(np.linalg.det(C), rel=1e-14)
+        e_all = loc.void_ratio(V, solid.sum())
+        assert e_all == pytest.approx(V / total - 1.0, rel=1e-12)
+
+
+def write_sheared(path, snaps, series, attrs=True, flip=None):
+    """A results file of sheared-cell snapshots [(step, ids, x, C, radii)]: cell_length and (attrs) cell_tilt and
+    cell_flip per snapshot, /series/cell_tilt per row (one row per snapshot)."""
+    tilts = [np.zeros(3) if np.ndim(c) == 1 else np.array([c[0, 1], c[0, 2], c[1, 2]]) for _, _, _, c, _ in snaps]
+    with h5py.File(path, "w") as f:
+        f.attrs["stage"] = "shear"
+        f["series/step"] = series["step"]
+        f["series/strain"] = series["strain"]
+        f["series/e"] = series["e"]
+        f["series/eta"] = np.full(len(series["step"]), 0.5)
+        f["series/eps_q"] = [2.0 / 3.0 * (s[0] - s[1]) for s in series["strain"]]
+        f["series/cell_tilt"] = np.array(tilts)
+        for (step, ids, x, c, r), t in zip(snaps, tilts):
+            g = f.create_group(f"snapshots/{step:012d}")
+            g.attrs["cell_length"] = loc.cell_lengths(c)
+            g.attrs["step"] = step
+            if attrs and np.any(t != 0.0):
+                g.attrs["cell_tilt"] = t
+                g.attrs["cell_flip"] = np.zeros(3) if flip is None else flip
+            g["id"] = ids
+            g["position"] = x
+            g["radius"] = r
+
+
+def test_sheared_files_and_end_void_ratios(tmp_path):
+    """The reader gives an orthorhombic snapshot its lengths (the old arithmetic) and a sheared one its C = H N (its
+    attributes, or, in files written before the snapshots recorded them, the series' tilts at its step; a flip the
+    snapshots did not record is refused); the command reads a sheared cell's file and finds its band; and
+    band_void_ratios gives the band's and the outside's void ratio over the last 0.1 of eps_q, NaN inside and
+    outside for a file without a band, with e_global equal to the series' e (the cell's volume over the solid's)."""
+    from sandcell_analysis import band_synthetic as syn
+    from sandcell_analysis.results import InputError, read_snapshot
+    tilt = (0.005, -0.01, 0.005)
+    snaps, series = syn.sample("band", 4000, 9001, tilt=tilt)
+    banded = str(tmp_path / "sheared.h5")
+    write_sheared(banded, snaps, series)
+    old = str(tmp_path / "old-writer.h5")
+    write_sheared(old, snaps, series, attrs=False)
+    with h5py.File(banded, "r") as f, h5py.File(old, "r") as g:
+        names = sorted(f["snapshots"], key=int)
+        assert np.ndim(read_snapshot(f, names[0], banded)[3]) == 1  # step 0: orthorhombic, its lengths
+        for k, name in enumerate(names[1:], 1):
+            C = read_snapshot(f, name, banded)[3]
+            assert np.array_equal(C, snaps[k][3]), "the cell matrix read back"
+            assert np.array_equal(read_snapshot(g, name, old)[3], C), "the series' tilts at the snapshot's step"
+    flipped = str(tmp_path / "flipped.h5")
+    write_sheared(flipped, snaps, series, flip=np.array([1.0, 0.0, 0.0]))
+    with h5py.File(flipped, "r") as f:
+        C = read_snapshot(f, sorted(f["snapshots"], key=int)[-1], flipped)[3]
+        H = snaps[-1][3]
+        assert np.array_equal(C, H @ upper(np.ones(3), (1.0, 0.0, 0.0))), "C = H N"
+    jump = str(tmp_path / "jump.h5")
+    write_sheared(jump, snaps, series, attrs=False)
+    with h5py.File(jump, "r+") as f:
+        t = f["series/cell_tilt"][:]
+        t[-1, 1] += snaps[-1][3][0, 0]  # a flip of xz by L_1 that the snapshots do not record
+        f["series/cell_tilt"][...] = t
+    with h5py.File(jump, "r") as f:
+        with pytest.raises(InputError, match="flipped"):
+            read_snapshot(f, sorted(f["snapshots"], key=int)[-1], jump)
+    # the command on the sheared file: banded, in its mode, with the end window's void ratios
+    out = str(tmp_path / "out")
+    res = run(banded, "--out", out, "--void-ratios")
+    assert res.returncode == 0, res.stderr
+    assert "banded: mode (1,0,1)" in res.stdout, res.stdout
+    v = loc.band_void_ratios(banded)
+    with open(os.path.join(out, "sheared-localization-void.csv")) as fh:
+        row = next(csv.DictReader(fh))
+    assert int(row["banded"]) == 1 and float(row["e_in"]) == pytest.approx(v["e_in"], rel=1e-5)
+    assert v["banded"] and (v["mode_h"], v["mode_k"], v["mode_l"]) == syn.HKL
+    # the window: eps_q of the snapshots 0, 0.02, 0.04, 0.06 (eps_q = eps_1 for this axisymmetric affine part): the
+    # last 0.1 holds all four
+    assert v["window_snapshots"] == 4 and v["eps_q_end"] == pytest.approx(0.06, rel=1e-12)
+    prof = loc.judge_test(loc.same_cell_kind(snaps), series, loc.default_grid(4000))["band"]
+    assert v["e_in"] == pytest.approx(np.mean([r["e_band"] for r in prof["rows"]]), rel=1e-12)
+    assert v["e_out"] == pytest.approx(np.mean([r["e_outside"] for r in prof["rows"]]), rel=1e-12)
+    assert v["e_in"] > v["e_global"] > v["e_out"], "the band dilates, the outside compacts"
+    assert v["e_global"] == pytest.approx(v["e_series"], abs=1e-12), "all slabs: the series' e"
+    assert (v["e_in_candidate"], v["e_out_candidate"]) == (v["e_in"], v["e_out"])
+    assert v["window_detected"] == 1.0, "every increment in the window detects the band in its mode"
+    # a file without a band: NaN inside and outside, e_global still the cell's
+    snaps, series = syn.sample("noise", 4000, 7003, tilt=tilt)
+    plain = str(tmp_path / "noise.h5")
+    write_sheared(plain, snaps, series)
+    v = loc.band_void_ratios(plain)
+    assert not v["banded"] and math.isnan(v["e_in"]) and math.isnan(v["e_out"])
+    assert math.isfinite(v["e_in_candidate"]) and math.isfinite(v["e_out_candidate"]) and v["window_detected"] == 0.0
+    assert v["e_global"] == pytest.approx(v["e_series"], abs=1e-12)

@@ -68,7 +68,13 @@ def mode_family(hkl, G):
 
 
 def wavenumbers2(G, L):
-    """|k|^2 (rad^2 / m^2) of every bin of a G-grid over a cell of edges L (fftn's order, flat)."""
+    """|k|^2 (rad^2 / m^2) of every bin of a G-grid over a cell of edges L (fftn's order, flat). A sheared cell C
+    (localization's cell matrix): the grid is over the reduced coordinates, and the integer mode m has the wave vector
+    k = 2 pi C^-T m."""
+    from .localization import orthorhombic, reciprocal
+    if not orthorhombic(L):
+        m = np.stack(np.meshgrid(*[np.fft.fftfreq(G, 1.0 / G)] * 3, indexing="ij"), -1).reshape(-1, 3)
+        return np.sum((2.0 * np.pi * m @ reciprocal(L).T) ** 2, axis=1)
     k = [2.0 * np.pi * np.fft.fftfreq(G, 1.0 / G) / L[m] for m in range(3)]
     return (k[0][:, None, None] ** 2 + k[1][None, :, None] ** 2 + k[2][None, None, :] ** 2).ravel()
 
@@ -120,7 +126,7 @@ def fit_correlation(s_a, u, L, G, exclude):
     `exclude` (the candidate mode's family) left out. Returns a dict: ell (m), shape, fraction (the correlated part's
     share of the bin means' variance in the model), sigma_bin [G^3, 3] (the noise of each bin mean) and spectrum
     (flat, fftn order: E|fft|^2 of one component's correlated part)."""
-    from .localization import bin_counts
+    from .localization import bin_counts, cell_lengths
     flat, count = bin_counts(s_a, G)
     mean = np.stack([np.bincount(flat, u[:, c], G ** 3) / count for c in range(3)], -1)
     within = np.stack([np.bincount(flat, (u[:, c] - mean[flat, c]) ** 2, G ** 3) for c in range(3)], -1)
@@ -137,7 +143,7 @@ def fit_correlation(s_a, u, L, G, exclude):
     best = (math.inf, 0.0, math.nan, "none")
     scales = np.concatenate([[0.0], white * np.geomspace(1e-4, 1e6, 81)])
     for shape in ("gaussian", "exponential"):
-        for ell in np.geomspace(ELL_RANGE[0] * min(L), ELL_RANGE[1] * max(L), ELLS):
+        for ell in np.geomspace(ELL_RANGE[0] * min(cell_lengths(L)), ELL_RANGE[1] * max(cell_lengths(L)), ELLS):
             g = covariance_spectrum(k2[keep], ell, shape)
             g /= g.mean()
             model = white + scales[:, None] * g[None, :]
@@ -175,7 +181,7 @@ def judge_field(q, s_a, u, L_a, L_b, table, n=N_SURROGATES, seed=SEED):
     particles' fractional coordinates s_a and non-affine displacements u: a dict with the strongest mode (hkl) and its
     share, the (a) and (b) thresholds, the fitted correlation length ell (m), shape and correlated fraction nu, and
     significant."""
-    from .localization import strongest_mode
+    from .localization import mean_cell, strongest_mode
     G = q.shape[0]
     hkl, share = strongest_mode(q, table)
     out = dict(hkl=hkl, share=share, threshold_noise=math.nan, threshold_gauss=math.nan, ell=math.nan, nu=math.nan,
@@ -185,7 +191,7 @@ def judge_field(q, s_a, u, L_a, L_b, table, n=N_SURROGATES, seed=SEED):
     rng = np.random.default_rng(seed)
     L_a, L_b = np.asarray(L_a, float), np.asarray(L_b, float)
     s_noise, _ = noise_surrogates(s_a, u, L_a, L_b, G, table, n, rng)
-    fit = fit_correlation(s_a, u, 0.5 * (L_a + L_b), G, mode_family(hkl, G))
+    fit = fit_correlation(s_a, u, mean_cell(L_a, L_b), G, mode_family(hkl, G))
     s_gauss = gaussian_surrogates(fit, L_a, L_b, G, table, n, rng)
     t_noise = float(np.nanquantile(s_noise, QUANTILE)) if np.isfinite(s_noise).any() else 0.0
     t_gauss = float(np.nanquantile(s_gauss, QUANTILE)) if np.isfinite(s_gauss).any() else 0.0

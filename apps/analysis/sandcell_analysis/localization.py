@@ -1,6 +1,6 @@
 """Strain localization in a sandcell triaxial test: is the incremental strain field homogeneous or banded?
 
-    triaxial localization RESULTS.h5... [--out DIR] [--grid G] [--whole] [--slabs K]
+    triaxial localization RESULTS.h5... [--out DIR] [--grid G] [--whole] [--slabs K] [--void-ratios]
 
 Reads the particle snapshots of each shearing results file (`output.snapshot_interval` sets how
 many; ~1 % of axial strain apart suits the method) and, for each pair of consecutive snapshots a, b
@@ -35,6 +35,26 @@ many; ~1 % of axial strain apart suits the method) and, for each pair of consecu
      increment; persistent when >= 50 % of the later ones detect it again in the same mode.
 The sampling of ~40 particles a bin leaves a noise floor in the local field: the CV and the mean
 local deps_q include it, the surrogates of kind (a) measure it.
+
+A cell that shears (a free cell, `shear = "free"`; docs/physics.md section 1): its snapshots give their
+cell as C = H N (H upper triangular, lengths and tilts xy, xz, yz, from the snapshot's cell_tilt, or from
+the series' row at its step for files written before the snapshots recorded it; N its flips), and every
+step above is taken in the reduced coordinates s = C^-1 x of that lattice basis, which the cell's affine
+deformation keeps: the bins and the modes are those of s, u = C_b wrap(s_b - s_a) (each snapshot with its
+own cell: the minimum image), the gradients dU/dx = dU/ds C^-1 in the mean cell, the affine part the Hencky
+strain (1/2) ln(F F^T) of F = C_b C_a^-1 (the series' strain_tensor convention), a mode's normal the
+reciprocal lattice vector C^-T (h, k, l) and its spacing 1 / |C^-T (h, k, l)|, the slabs' volume V_cell / K
+with V_cell = det C. The surrogates are built in the same geometry (their wave vectors 2 pi C^-T m). A free
+cell is thus judged by the same method and criteria as an orthorhombic one. An orthorhombic cell (no
+tilts, no flips) keeps its lengths and the arithmetic above, bitwise that of the code before sheared cells
+were read.
+
+--void-ratios: also <stem>-localization-void.csv (band_void_ratios, one row): the verdict, the band's
+mode and normal, its onset and persistence, and over the critical-state window (the snapshots within the
+last 0.1 of eps_q) the mean void ratio of the band's slabs (e_in), of the other slabs (e_out), both empty
+(NaN) when the file is not banded, and of all (e_global, the series' e to round-off); also the same two
+means over the candidate mode's slabs whatever the verdict (e_in_candidate, e_out_candidate) and the part of
+the window's increments that detect the band in that mode (window_detected).
 
 Band profile and verdict (whatever --whole says): is there a band, and is it denser or looser than the
 rest? The strongest mode (h, k, l) of the whole-test increment (first snapshot to last) is the file's
@@ -109,10 +129,81 @@ def strain_invariants(deps):
     return np.sqrt(2.0 / 3.0 * np.sum(dev * dev, axis=(-2, -1))), vol
 
 
+# The cell of a snapshot (docs/physics.md section 1) is either its three edge lengths L (an orthorhombic cell: the
+# arithmetic below is then exactly that of the code before the cell could shear, bitwise) or the 3 x 3 upper triangular
+# matrix C = H N whose columns are the edges of the lattice basis that deforms affinely (H the written basis, N its
+# flips; C = H when the cell never flipped). Every quantity is taken in the reduced coordinates s = C^-1 x: bins, modes
+# and slabs are those of the lattice basis, which the cell's affine deformation keeps.
+
+def orthorhombic(*cells):
+    """Whether every cell is given by its lengths (the orthorhombic arithmetic applies)."""
+    return all(np.ndim(c) == 1 for c in cells)
+
+
+def cell_matrix(c):
+    """The cell's basis C (3 x 3, columns the edge vectors) from its lengths or its matrix."""
+    c = np.asarray(c, float)
+    return c if c.ndim == 2 else np.diag(c)
+
+
+def cell_lengths(c):
+    """The diagonal of the cell's basis (L_1, L_2, L_3)."""
+    c = np.asarray(c, float)
+    return c if c.ndim == 1 else np.diag(c).copy()
+
+
+def cell_volume(c):
+    """V = det C = L_1 L_2 L_3 (C upper triangular)."""
+    return float(np.prod(cell_lengths(c)))
+
+
+def mean_cell(c_a, c_b):
+    """The increment's mean cell (its midpoint, where the gradients are taken): lengths if both are lengths."""
+    if orthorhombic(c_a, c_b):
+        return 0.5 * (np.asarray(c_a, float) + np.asarray(c_b, float))
+    return 0.5 * (cell_matrix(c_a) + cell_matrix(c_b))
+
+
+def reduced(x, c):
+    """Reduced coordinates s = C^-1 x of positions x [n, 3] (x / L for an orthorhombic cell; back substitution in the
+    upper triangular C otherwise, as components/cell.hpp's reduced())."""
+    c = np.asarray(c, float)
+    if c.ndim == 1:
+        return x / c
+    x = np.asarray(x, float)
+    s = np.empty_like(x)
+    s[:, 2] = x[:, 2] / c[2, 2]
+    s[:, 1] = (x[:, 1] - c[1, 2] * s[:, 2]) / c[1, 1]
+    s[:, 0] = (x[:, 0] - c[0, 1] * s[:, 1] - c[0, 2] * s[:, 2]) / c[0, 0]
+    return s
+
+
+def affine_strain(c_a, c_b):
+    """The affine (cell) part of the increment's logarithmic strain, tension positive: diag(ln(L_b / L_a)) for an
+    orthorhombic cell; for any cell the Hencky strain ln V = (1/2) ln(F F^T) of the increment's deformation
+    F = C_b C_a^-1 (its rotation dropped), the series' strain_tensor convention."""
+    if orthorhombic(c_a, c_b):
+        return np.diag(np.log(np.asarray(c_b, float) / np.asarray(c_a, float)))
+    F = cell_matrix(c_b) @ np.linalg.inv(cell_matrix(c_a))
+    w, V = np.linalg.eigh(F @ F.T)
+    return 0.5 * (V * np.log(w)) @ V.T
+
+
+def reciprocal(c):
+    """C^-T, whose columns are the reciprocal basis (without 2 pi): a plane wave of integer mode m in s has the wave
+    vector C^-T m in x, and a gradient over s becomes one over x as d/dx = C^-T d/ds."""
+    return np.linalg.inv(cell_matrix(c)).T
+
+
 def non_affine(id_a, x_a, L_a, id_b, x_b, L_b):
     """The particles matched by id (indices into snapshot a), their fractional coordinates s_a and their
-    non-affine displacements u = wrap(s_b - s_a) L_b."""
+    non-affine displacements u = wrap(s_b - s_a) L_b (with a sheared cell: s = C^-1 x with each snapshot's own cell,
+    u = C_b wrap(s_b - s_a), the minimum image)."""
     _, ia, ib = np.intersect1d(id_a, id_b, assume_unique=True, return_indices=True)
+    if not orthorhombic(L_a, L_b):
+        s_a = reduced(x_a[ia], L_a)
+        ds = reduced(x_b[ib], L_b) - s_a
+        return ia, s_a, (ds - np.floor(ds + 0.5)) @ cell_matrix(L_b).T
     s_a = x_a[ia] / L_a
     ds = x_b[ib] / L_b - s_a
     return ia, s_a, (ds - np.floor(ds + 0.5)) * L_b
@@ -155,8 +246,15 @@ def binned_strain(s_a, u, L_a, L_b, G):
 
 def strain_of_means(U, L_a, L_b):
     """The local strain [..., G, G, G, 3, 3] of bin-mean non-affine displacements U [..., G, G, G, 3]: periodic
-    central differences over the mean cell's bin spacing, plus the affine increment, compression positive."""
+    central differences over the mean cell's bin spacing, plus the affine increment, compression positive. A sheared
+    cell: the differences are taken along the reduced axes, dU/ds_m = (U[+1] - U[-1]) / (2 / G), and turned into
+    dU/dx = dU/ds C^-1 with the mean cell C; the affine part is affine_strain's."""
     G = U.shape[-2]
+    if not orthorhombic(L_a, L_b):
+        axes = range(U.ndim - 4, U.ndim - 1)
+        grad_s = np.stack([(np.roll(U, -1, a) - np.roll(U, 1, a)) * (0.5 * G) for a in axes], -1)  # [..., i, m]
+        grad = grad_s @ np.linalg.inv(cell_matrix(mean_cell(L_a, L_b)))  # [..., i, j]
+        return -(affine_strain(L_a, L_b) + 0.5 * (grad + np.swapaxes(grad, -1, -2)))
     spacing = 0.5 * (L_a + L_b) / G
     axes = range(U.ndim - 4, U.ndim - 1)
     grad = np.stack([(np.roll(U, -1, a) - np.roll(U, 1, a)) / (2.0 * spacing[m]) for m, a in enumerate(axes)],
@@ -207,13 +305,13 @@ def increment_stats(deps, L_a, L_b, table, rng_seed=SEED, particles=None):
     particles = (s_a, u), also the band detector's test of the field: band_detector.judge_field) and its deps_q
     field."""
     q, v = strain_invariants(deps)
-    q_macro, v_macro = strain_invariants(-np.diag(np.log(np.asarray(L_b, float) / np.asarray(L_a, float))))
+    q_macro, v_macro = strain_invariants(-affine_strain(L_a, L_b))
     hkl, share = strongest_mode(q, table)
     rng = np.random.default_rng(rng_seed)
     shuffled = float(np.mean([strongest_mode(rng.permutation(q.ravel()).reshape(q.shape), table)[1]
                               for _ in range(SHUFFLES)]))
-    L = 0.5 * (np.asarray(L_a, float) + np.asarray(L_b, float))
-    normal = np.array(hkl, float) / L
+    L = mean_cell(L_a, L_b)
+    normal = np.array(hkl, float) / L if orthorhombic(L) else reciprocal(L) @ np.array(hkl, float)
     mean = float(q.mean())
     return dict(deps_q_macro=float(q_macro), deps_v_macro=float(v_macro), deps_q_mean=mean,
                 deps_q_cv=float(q.std() / mean) if mean > 0 else math.nan, top10_share=top_share(q),
@@ -241,16 +339,19 @@ def old_criterion(row):
 
 def mode_geometry(L, hkl):
     """Plane spacing d (m) and unit normal of the mode (h, k, l) in a cell of edges L: its field is constant on the
-    planes n . x = const (mod 1), n = (h/L_1, k/L_2, l/L_3), d = 1 / |n| apart."""
-    n = np.asarray(hkl, float) / np.asarray(L, float)
+    planes n . x = const (mod 1), n = (h/L_1, k/L_2, l/L_3), d = 1 / |n| apart. A sheared cell C: n = C^-T (h, k, l),
+    the reciprocal lattice vector (n . x = (h, k, l) . s)."""
+    n = np.asarray(hkl, float) / np.asarray(L, float) if orthorhombic(L) else reciprocal(L) @ np.asarray(hkl, float)
     d = 1.0 / np.linalg.norm(n)
     return d, n * d
 
 
 def mode_coordinate(x, L, hkl):
-    """xi = frac(h s_1 + k s_2 + l s_3) in [0, 1), s = x / L: the position across the mode's planes. The cell's affine
-    deformation keeps it, so a slab of xi holds the same particles at every snapshot but for their non-affine motion."""
-    xi = (np.asarray(x, float) / np.asarray(L, float)) @ np.asarray(hkl, float)
+    """xi = frac(h s_1 + k s_2 + l s_3) in [0, 1), s = x / L (s = C^-1 x in a sheared cell): the position across the
+    mode's planes. The cell's affine deformation keeps it, so a slab of xi holds the same particles at every snapshot
+    but for their non-affine motion."""
+    xi = (reduced(np.asarray(x, float), L) if not orthorhombic(L) else np.asarray(x, float) / np.asarray(L, float)) \
+        @ np.asarray(hkl, float)
     xi -= np.floor(xi)
     return np.where(xi < 1.0, xi, 0.0)  # -1e-18 - floor(-1e-18) rounds to 1.0
 
@@ -293,9 +394,9 @@ def slab_strain(id_a, x_a, L_a, id_b, x_b, L_b, hkl, K):
     if not count.all():
         raise ValueError(f"{np.count_nonzero(count == 0)} of {K} slabs are empty")
     U = np.stack([np.bincount(slab, u[:, c], K) / count for c in range(3)], -1)
-    d, normal = mode_geometry(0.5 * (L_a + L_b), hkl)
+    d, normal = mode_geometry(mean_cell(L_a, L_b), hkl)
     grad = ((np.roll(U, -1, 0) - np.roll(U, 1, 0)) / (2.0 * d / K))[:, :, None] * normal  # [slab, i, m]
-    return -(np.diag(np.log(L_b / L_a)) + 0.5 * (grad + np.swapaxes(grad, -1, -2)))
+    return -(affine_strain(L_a, L_b) + 0.5 * (grad + np.swapaxes(grad, -1, -2)))
 
 
 def band_slabs(q):
@@ -368,7 +469,7 @@ def profile_of(snaps, series, G, K, whole=None):
     rows = []
     for step, _, x, L, r in snaps:
         solid = slab_solid_volumes(x, r, L, hkl, K)
-        V = float(np.prod(L))
+        V = cell_volume(L)
         rows.append(dict(step=step, eps_1=float(np.interp(step, series["step"], series["strain"][:, 0])) + 0.0,  # no -0
                          e_band=void_ratio(band.sum() * V / K, solid[band].sum()),
                          e_outside=void_ratio((K - band.sum()) * V / K, solid[~band].sum()),
@@ -403,12 +504,21 @@ def write_text(path, text):
 
 def read_snapshots(f, path):
     """The snapshots of an open results file for the increments and the band profile: [(step, ids, positions, cell
-    lengths, radii or None)] (snapshot_names: the stage's end replacing the last interval snapshot)."""
+    lengths or matrix, radii or None)] (snapshot_names: the stage's end replacing the last interval snapshot). When
+    any snapshot's cell is sheared, every snapshot's cell is given as its matrix (same_cell_kind)."""
     snaps = []
     for name in snapshot_names(f, path):
         g = f["snapshots"][name]
         snaps.append(read_snapshot(f, name, path) + (np.asarray(g["radius"][:], float) if "radius" in g else None,))
-    return snaps
+    return same_cell_kind(snaps)
+
+
+def same_cell_kind(snaps):
+    """The snapshots with every cell as its matrix when any is one (a free cell starts orthorhombic and then shears:
+    one arithmetic for the whole test), else unchanged."""
+    if orthorhombic(*(sn[3] for sn in snaps)):
+        return snaps
+    return [sn[:3] + (cell_matrix(sn[3]),) + tuple(sn[4:]) for sn in snaps]
 
 
 def band_profile(f, path, series, G, K):
@@ -454,6 +564,7 @@ def judge_test(snaps, series, G, K=SLABS, whole=False, log=None):
     for each increment. Raises ValueError (naming the steps) on an empty bin or slab."""
     from . import band_detector as bd
     table = mode_table(G)
+    snaps = same_cell_kind(snaps)
     rows, fields = [], []
     pairs = [(snaps[0], snaps[-1])] if whole else list(zip(snaps[:-1], snaps[1:]))
     for (step_a, id_a, x_a, L_a, _), (step_b, id_b, x_b, L_b, _) in pairs:
@@ -473,7 +584,7 @@ def judge_test(snaps, series, G, K=SLABS, whole=False, log=None):
         stats.update(strain_ratio=ratio, band_detected=int(bool(stats["significant"]) and ratio >= bd.STRAIN_RATIO))
         eps1 = float(np.interp(0.5 * (step_a + step_b), series["step"], series["strain"][:, 0]))
         rows.append(dict(step_a=step_a, step_b=step_b, eps1_mid=eps1, **stats))
-        fields.append((q, 0.5 * (L_a + L_b)))
+        fields.append((q, cell_lengths(mean_cell(L_a, L_b))))  # the maps: reduced axes times the lengths
         if log:
             log(rows[-1])
     same = rows[-1] if (rows[-1]["step_a"], rows[-1]["step_b"]) == (snaps[0][0], snaps[-1][0]) else None
@@ -485,6 +596,70 @@ def judge_test(snaps, series, G, K=SLABS, whole=False, log=None):
         r["banded"] = int(band["banded"])
     return dict(rows=rows, fields=fields, series=series, G=G, N=len(snaps[-1][1]), matched=len(ia), band=band,
                 onset=bd.onset_persistence(rows), whole=whole)
+
+
+END_WINDOW = 0.1      # band_void_ratios: the critical-state window, the last 0.1 of eps_q
+VOID_COLUMNS = ["banded", "why", "mode_h", "mode_k", "mode_l", "normal_angle_deg", "onset_step", "onset_eps_q",
+                "persistence", "persistent", "eps_q_end", "window_from", "window_snapshots", "window_detected", "e_in",
+                "e_out", "e_global", "e_series", "e_in_candidate", "e_out_candidate"]
+
+
+def eps_q_series(path):
+    """(step, eps_q) of a results file's /series (eps_q from the principal strains when the file has no column)."""
+    from .results import read_columns
+    cols = read_columns(path, ["step", "strain"], optional=["eps_q"])
+    if "eps_q" in cols:
+        return cols["step"], cols["eps_q"]
+    a, b_, c = (cols["strain"][:, k] for k in range(3))
+    return cols["step"], math.sqrt(2) / 3 * np.sqrt((a - b_) ** 2 + (b_ - c) ** 2 + (c - a) ** 2)
+
+
+def end_void_ratios(res, step, eps_q, window=END_WINDOW):
+    """The void ratios at the end of a test from its judgement (judge_test's result) and its (step, eps_q) series:
+    over the snapshots in the critical-state window (eps_q within `window` of the last snapshot's), the means of the
+    void ratio of the band's slabs (e_in), of the other slabs (e_out) and of all (e_global; e_series: the series' e
+    there), with the detector's verdict, the band's mode and normal (its angle to axis 1), onset (the first snapshot
+    increment that detects the band: its later step, and eps_q at its midpoint) and persistence, and window_detected:
+    the part of the increments in the window (their midpoint's eps_q) that detect a band in the file's mode. e_in and
+    e_out are NaN when the file is not banded (the candidate mode's slabs are no band); e_in_candidate and
+    e_out_candidate are the same means for the candidate mode's slabs whatever the verdict (to be read only with
+    it); all are NaN without a band profile (no radii)."""
+    b = res["band"]
+    rows = res["rows"]
+    k0, frac, persistent = res["onset"]
+    out = dict(banded=int(bool(b["banded"])), why="; ".join(b.get("why", [])), mode_h=b["hkl"][0], mode_k=b["hkl"][1],
+               mode_l=b["hkl"][2], normal_angle_deg=b["angle"], onset_step=rows[k0]["step_b"] if k0 is not None else -1,
+               onset_eps_q=float(np.interp(0.5 * (rows[k0]["step_a"] + rows[k0]["step_b"]), step, eps_q))
+               if k0 is not None else math.nan,
+               persistence=frac, persistent=int(bool(persistent)), eps_q_end=math.nan, window_from=math.nan,
+               window_snapshots=0, window_detected=math.nan, e_in=math.nan, e_out=math.nan, e_global=math.nan,
+               e_series=math.nan, e_in_candidate=math.nan, e_out_candidate=math.nan)
+    if b["rows"] is None:
+        return out
+    q = np.interp([r["step"] for r in b["rows"]], step, eps_q)
+    keep = q >= q[-1] - window
+    sel = [r for r, k in zip(b["rows"], keep) if k]
+    mid = np.interp([0.5 * (r["step_a"] + r["step_b"]) for r in rows], step, eps_q)
+    late = [r for r, m in zip(rows, mid) if m >= q[keep][0]]
+    same = [r["band_detected"] and tuple(r[c] for c in ("mode_h", "mode_k", "mode_l")) == tuple(b["hkl"]) for r in late]
+    out.update(eps_q_end=float(q[-1]), window_from=float(q[keep][0]), window_snapshots=len(sel),
+               window_detected=float(np.mean(same)) if same else math.nan,
+               e_global=float(np.mean([r["e_whole"] for r in sel])),
+               e_series=float(np.mean([r["e_series"] for r in sel])),
+               e_in_candidate=float(np.mean([r["e_band"] for r in sel])),
+               e_out_candidate=float(np.mean([r["e_outside"] for r in sel])))
+    if b["banded"]:
+        out.update(e_in=out["e_in_candidate"], e_out=out["e_out_candidate"])
+    return out
+
+
+def band_void_ratios(path, G=None, K=SLABS, window=END_WINDOW):
+    """For a results file: the band detector's verdict (analyse, every snapshot increment) and, over its last
+    snapshots (the critical-state window: the last `window` of eps_q), the void ratio inside the band's slabs, outside
+    them and of the whole cell, with the band's mode (end_void_ratios' dict). Exits as analyse does on bad input."""
+    res = analyse(path, G, False, K)
+    step, eps_q = eps_q_series(path)
+    return end_void_ratios(res, step, eps_q, window)
 
 
 def band_summary(b):
@@ -546,6 +721,15 @@ def write_band_csv(path, b):
     for r in b["rows"]:
         w.writerow([r["step"]] + [f"{v:.10g}" for v in (r["eps_1"], r["e_band"], r["e_outside"], r["e_whole"])]
                    + [f"{v:.10g}" for v in r["e_slab"]])
+    write_text(path, buf.getvalue())
+
+
+def write_void_csv(path, v):
+    """end_void_ratios' dict as a one-row CSV (VOID_COLUMNS)."""
+    buf = io.StringIO()
+    w = csv.writer(buf, lineterminator="\n")
+    w.writerow(VOID_COLUMNS)
+    w.writerow([f"{v[c]:.6g}" if isinstance(v[c], float) else v[c] for c in VOID_COLUMNS])
     write_text(path, buf.getvalue())
 
 
@@ -690,6 +874,9 @@ def main(argv=None):
                     help="one increment, from the first snapshot to the last (the whole test)")
     ap.add_argument("--slabs", type=slabs_arg, default=SLABS,
                     help=f"slabs across the band's period for its profile, >= 4 (default {SLABS})")
+    ap.add_argument("--void-ratios", action="store_true",
+                    help=f"also the void ratio inside and outside the band and of the whole cell over the last "
+                    f"{END_WINDOW:g} of eps_q (the critical-state window): <test>-localization-void.csv, one row")
     args = ap.parse_args(argv)
     try:
         return run(args)
@@ -731,6 +918,13 @@ def run(args):
         elif os.path.exists(prefix + "-band.csv"):
             os.remove(prefix + "-band.csv")  # an earlier run's profile: this one found no band
         best = write_summary(prefix + ".md", src, res)
+        if getattr(args, "void_ratios", False):
+            v = end_void_ratios(res, *eps_q_series(src))
+            write_void_csv(prefix + "-void.csv", v)
+            print(f"{PROG}: {os.path.basename(src)}: end window (eps_q {v['window_from']:.3f}-{v['eps_q_end']:.3f}, "
+                  f"{v['window_snapshots']} snapshots): {'banded' if v['banded'] else 'no band'}, mode "
+                  f"({v['mode_h']},{v['mode_k']},{v['mode_l']}), e_in {v['e_in']:.4f}, e_out {v['e_out']:.4f}, "
+                  f"e_global {v['e_global']:.4f}", flush=True)
         plots.localization_figure(prefix + ".png", src, res, best)
         print(f"{PROG}: wrote {prefix}.md (+ csv, {'band csv, ' if res['band']['banded'] else ''}png)")
     return 0

@@ -231,17 +231,48 @@ def snapshot_names(f, path, whole=False):
 
 
 def read_snapshot(f, name, path):
-    """(step, ids, positions [n, 3], cell lengths [3]) of one particle snapshot."""
+    """(step, ids, positions [n, 3], cell) of one particle snapshot. The cell is its lengths [3] when the cell is
+    orthorhombic (no tilts and no flips: what the analysis then computes is exactly what it computed before the cell
+    could shear), else the 3 x 3 upper triangular C = H N (docs/physics.md section 1: H the lattice basis of lengths
+    and tilts xy, xz, yz, N the flips, so that C deforms affinely with the particles). The tilts and flips are the
+    snapshot's `cell_tilt` and `cell_flip` attributes; a snapshot written before the writer recorded them (its cell
+    sheared: /series/cell_tilt not all zero) takes the tilts of the series row at its step and no flips (a flip
+    would show as a jump of a tilt by a cell length in the series: such a file is refused)."""
     g = f["snapshots"][name]
     missing = [k for k in ("id", "position") if k not in g] + ([] if "cell_length" in g.attrs else ["cell_length"])
     if missing:
         raise InputError(f"{path}: snapshot {name} lacks {', '.join(missing)}")
-    # The readers of snapshots (localization) take the cell as orthorhombic, x = diag(L) s: a sheared
-    # cell's snapshots (their tilts, or a series whose cell_tilt is not zero) would be misread.
-    tilt = np.asarray(g.attrs["cell_tilt"], float) if "cell_tilt" in g.attrs else np.zeros(3)
-    series_tilt = f["series"]["cell_tilt"][:] if "series" in f and "cell_tilt" in f["series"] else np.zeros(3)
-    if np.any(tilt != 0.0) or np.any(series_tilt != 0.0):
-        raise InputError(f"{path}: snapshot {name}: the cell shears (cell_tilt not zero): the snapshot readers take "
-                         "an orthorhombic cell, and a sheared one is not supported yet")
-    return int(g.attrs.get("step", int(name))), g["id"][:], np.asarray(g["position"][:], float), \
-        np.asarray(g.attrs["cell_length"], float)
+    step = int(g.attrs.get("step", int(name)))
+    length = np.asarray(g.attrs["cell_length"], float)
+    if "cell_tilt" in g.attrs:
+        tilt = np.asarray(g.attrs["cell_tilt"], float)
+        flip = np.asarray(g.attrs["cell_flip"], float) if "cell_flip" in g.attrs else np.zeros(3)
+    else:
+        tilt, flip = series_tilt(f, step, path, length), np.zeros(3)
+    cell = length
+    if np.any(tilt != 0.0) or np.any(flip != 0.0):
+        H = np.array([[length[0], tilt[0], tilt[1]], [0.0, length[1], tilt[2]], [0.0, 0.0, length[2]]])
+        N = np.array([[1.0, flip[0], flip[1]], [0.0, 1.0, flip[2]], [0.0, 0.0, 1.0]])
+        cell = H @ N
+    return step, g["id"][:], np.asarray(g["position"][:], float), cell
+
+
+def series_tilt(f, step, path, length):
+    """The cell's tilts at `step` from /series/cell_tilt (zeros when the file has none or they are all zero), for
+    snapshots that do not record them (length: the snapshot's, the scale of a flip's jump). InputError when the step
+    has no series row or the series shows a flip."""
+    s = f["series"] if "series" in f else None
+    if s is None or "cell_tilt" not in s or "step" not in s:
+        return np.zeros(3)
+    n = min(s["cell_tilt"].shape[0], s["step"].shape[0])
+    tilts, steps = np.asarray(s["cell_tilt"][:n], float), np.asarray(s["step"][:n], float)
+    if not np.any(tilts != 0.0):
+        return np.zeros(3)
+    if n > 1 and np.any(np.abs(np.diff(tilts, axis=0)) > 0.25 * length[[0, 0, 1]]):  # a flip: by L_1, L_1, L_2
+        raise InputError(f"{path}: its cell flipped (a tilt jumps by a cell length in /series/cell_tilt) and its "
+                         "snapshots do not record the flips (cell_flip): the snapshots cannot be read")
+    row = np.flatnonzero(steps == step)
+    if not row.size:
+        raise InputError(f"{path}: the snapshot at step {step} records no cell tilts and /series has no row at that "
+                         "step: its sheared cell is unknown")
+    return tilts[row[0]]
