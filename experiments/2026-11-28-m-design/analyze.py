@@ -7,11 +7,12 @@ RUN_ROOT holds one run folder per target void ratio, e<e0> (fixed cell) and e<e0
 sample, cell.shear = "free"): 4,000 spheres prepared at 0.5 MPa to e0 = 0.55 .. 0.79
 (prepare.target_e0), sheared at constant p and b = 0 to eps_q = 0.6 (config.toml). Writes states.csv
 (per test: e0, its end window, whether e, p, Z_mech and F_a are steady there, its characteristic
-state) and m.json (the fit per cell and both together).
+state) and m.json (the fit per cell; "both" pools the two cells' tests of the same samples, which are
+not independent: reported, not a verdict).
 
 Method, fixed before the data (the package's functions, as `triaxial analyze` uses them):
-- e_c(0.5 MPa): the mean end-window (last 0.1 of eps_q) void ratio of the tests that held their path
-  and whose e, p, Z_mech and F_a are steady there (critical.detect_critical without eta: see
+- e_c(0.5 MPa): the mean end-window (last 0.1 of eps_q) void ratio of the tests (either cell) that
+  held their path and whose e, p, Z_mech and F_a are steady there (critical.detect_critical without eta: see
   experiments/2026-11-28-critical-v2 for why eta's 2 % cannot be shown at these sizes); M: their mean
   q/p. All tests sit at p = 0.5 MPa (constant p), so psi = e - e_c needs no CSL slope.
 - plastic dilatancy (dilatancy.plastic_dilatancy: the elastic parts dp/K and dq/3G removed with each
@@ -66,13 +67,15 @@ def main(argv=None):
         tests.append({"folder": folder, "cell": cell, "e0": float(t["e"][0]), "t": t, "check": chk,
                       "steady": bool(chk["reached"]) and t["status"].startswith("done")})
     rows, fits = [], {}
+    # e_c and M: one material's, from every steady test of either cell (the same samples).
+    steady = [x for x in tests if x["steady"]]
+    if not steady:
+        print("no test is steady at its end: e_c unknown", file=sys.stderr)
+        return 1
+    e_c = float(np.mean([x["check"]["point"]["e"] for x in steady]))
+    M = float(np.mean([x["check"]["point"]["eta"] for x in steady]))
     for cell in ("fixed", "free", "both"):
         group = [x for x in tests if cell == "both" or x["cell"] == cell]
-        steady = [x for x in group if x["steady"]]
-        if not steady:
-            continue
-        e_c = float(np.mean([x["check"]["point"]["e"] for x in steady]))
-        M = float(np.mean([x["check"]["point"]["eta"] for x in steady]))
         dil = {}
         for x in group:
             t = x["t"]
@@ -113,6 +116,8 @@ def main(argv=None):
                              "eta_star": state["eta_star"]})
         fit = dilatancy.fit_m_pt(psi, eta_star, M)
         fits[cell] = {"e_c": e_c, "M": M, "initial_slope": s, "n_steady": len(steady), **fit}
+        if cell == "both":
+            fits[cell]["verdict"] = "(pooled: the same samples in two cells, not independent; no verdict)"
     with open(os.path.join(a.out, "states.csv"), "w", newline="") as f:
         w = csv.DictWriter(f, fieldnames=list(rows[0].keys()) if rows else ["folder"])
         w.writeheader()
