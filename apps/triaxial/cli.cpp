@@ -109,7 +109,8 @@ void add_run_options(CLI::App& app, CommandLine& cl) {
       "Speed versus accuracy (timestep, inertial number, stiffness, restitution, N; table and Pareto figure):\n"
       "  triaxial study [CONFIG] [--preset quick|inertia|full|size] [--out DIR]   (triaxial study --help)\n"
       "Strain localization (shear bands) from the particle snapshots of results files:\n"
-      "  triaxial localization RESULTS.h5... [--out DIR] [--grid G] [--whole] [--slabs K]   (triaxial localization --help)\n"
+      "  triaxial localization RESULTS.h5... [--out DIR] [--grid G] [--whole] [--slabs K] [--void-ratios]\n"
+      "      (triaxial localization --help)\n"
       "Calibration of micro-parameters against macroscopic targets (surrogate, posterior, check run):\n"
       "  triaxial calibrate CONFIG --targets FILE --param KEY=LO:HI... [--budget N] [--out DIR] [--resume]   "
       "(triaxial calibrate --help)");
@@ -253,7 +254,7 @@ int triaxial_main(int argc, const char* const* argv, std::ostream& out, std::ost
   if (argc >= 2 && std::string(argv[1]) == "analyze") return script_main("analyze", argc - 1, argv + 1, err);
   // `triaxial study CONFIG [--preset quick|inertia|full|size]`: the speed-accuracy study (study.py).
   if (argc >= 2 && std::string(argv[1]) == "study") return script_main("study", argc - 1, argv + 1, err);
-  // `triaxial localization RESULTS.h5... [--out DIR] [--grid G] [--whole] [--slabs K]`: strain fields between snapshots (localization.py).
+  // `triaxial localization RESULTS.h5... [--out DIR] [--grid G] [--whole] [--slabs K] [--void-ratios]`: strain fields between snapshots (localization.py).
   if (argc >= 2 && std::string(argv[1]) == "localization") return script_main("localization", argc - 1, argv + 1, err);
   // `triaxial calibrate CONFIG --targets FILE --param KEY=LO:HI...`: micro-parameters against targets (calibrate.py).
   if (argc >= 2 && std::string(argv[1]) == "calibrate") return script_main("calibrate", argc - 1, argv + 1, err);
