@@ -59,4 +59,24 @@ State make_state(const Model& model, const Packing& packing, std::uint32_t mater
   return state;
 }
 
+Packing tile_packing(const Packing& packing, int k) {
+  if (k < 1) throw std::invalid_argument("tile_packing: k = " + std::to_string(k) + ": must be >= 1");
+  Packing out;
+  out.box = packing.box * static_cast<double>(k);
+  const std::size_t n = packing.position.size();
+  const std::size_t copies = static_cast<std::size_t>(k) * k * k;
+  out.position.reserve(n * copies);
+  out.radius.reserve(n * copies);
+  for (int i = 0; i < k; ++i)
+    for (int j = 0; j < k; ++j)
+      for (int l = 0; l < k; ++l) {
+        const Vec3 shift(i * packing.box[0], j * packing.box[1], l * packing.box[2]);
+        for (std::size_t a = 0; a < n; ++a) {
+          out.position.push_back(packing.position[a] + shift);
+          out.radius.push_back(packing.radius[a]);
+        }
+      }
+  return out;
+}
+
 }  // namespace sandcell

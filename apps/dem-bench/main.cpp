@@ -1,7 +1,7 @@
 // dem-bench: throughput and physics check on fixed scenes, with the settings the established codes
 // ran (apps/dem-bench/scenes/: the scenes and the settings, docs/performance.md: the figures).
 //
-//   dem-bench [--scene FILE] [--steps N] [--threads T] [--deform RATE] [--shear RATE] [--rolling MODEL]
+//   dem-bench [--scene FILE] [--tile K] [--steps N] [--threads T] [--deform RATE] [--shear RATE] [--rolling MODEL]
 //             [--tangential MODEL] [--compat] [--sort STEPS] [--serial] [--json]
 // --sort STEPS: spatial sort interval (default 1000; 0 = never).
 //
@@ -329,6 +329,7 @@ int run_costs(const Model& base, const Packing& packing, long steps, int threads
 struct Options {
   std::string scene = std::string(SANDCELL_BENCH_SCENE_DIR) + "/dense-20k.txt";
   double steps = 2000, threads = 0, rounds = 3, sort_interval = 1000;  // threads 0: all hardware threads
+  double tile = 1;  // --tile K: the scene repeated K x K x K times
   double deform = 0.0, vchar = 0.0, shear = 0.0;
   bool json = false, serial = false, costs = false, scaling = false, probe = false, compat = false;
   std::string partition = "adaptive", rolling = "epsd2", tangential = "history", normal;
@@ -358,7 +359,7 @@ std::optional<int> parse_command_line(int argc, char** argv, Options& o, Model& 
       "box; scene B: --deform 0.9391)"};
   app.option_defaults()->multi_option_policy(CLI::MultiOptionPolicy::TakeLast);  // a repeated option: the last
   app.footer(
-      "usage: dem-bench [--scene FILE] [--steps N] [--threads T] [--deform RATE] [--rolling none|epsd2|epsd|cdt]\n"
+      "usage: dem-bench [--scene FILE] [--tile K] [--steps N] [--threads T] [--deform RATE] [--rolling none|epsd2|epsd|cdt]\n"
       "                 [--tangential history|incremental] [--normal hertz|hooke [--vchar V]] [--compat]\n"
       "                 [--sort STEPS] [--serial] [--partition adaptive|owner|dynamic|fixed] [--json]\n"
       "       dem-bench --costs [--scene FILE] [--steps N] [--threads T] [--rounds R]\n"
@@ -390,6 +391,11 @@ std::optional<int> parse_command_line(int argc, char** argv, Options& o, Model& 
   app.add_option("--partition", o.partition, "how the threads share each pass (default adaptive)")
       ->type_name("P")
       ->check(CLI::IsMember(std::vector<std::string>{"adaptive", "dynamic", "fixed", "owner"}));
+  app.add_option("--tile", o.tile,
+                 "the scene repeated K x K x K times in a K times larger box (2: 160,000 spheres from dense-20k, "
+                 "4: 1,280,000): the same density, contacts per sphere and stress")
+      ->type_name("K")
+      ->check(number_in(1, 8));
   app.add_option("--rounds", o.rounds, "rounds of --scaling and --costs (default 3)")
       ->type_name("R")
       ->check(number_in(1, 1000));
@@ -480,6 +486,8 @@ static int bench_main(int argc, char** argv) {
   } catch (const std::exception& e) {
     usage_error(e.what());
   }
+  if (o.tile != std::floor(o.tile)) usage_error("--tile " + std::to_string(o.tile) + ": must be an integer in [1, 8]");
+  if (o.tile > 1) packing = tile_packing(packing, static_cast<int>(o.tile));
   if (costs) return run_costs(model, packing, steps, threads, rounds);
   if (scaling) return run_scaling(model, packing, steps, threads, rounds, drive, json, probe, partition);
   if (probe) {  // the machine alone (probe.hpp), for scripts that time other programs in the same rounds
