@@ -63,7 +63,7 @@ def fabric_measures(fabric6, stress6):
     """Per row: F_a = |15/2 dev(phi)| and A = unit dev(phi) : unit dev(sigma)."""
     f = 7.5 * deviator(tensor(fabric6))
     s = deviator(tensor(stress6))
-    fn = np.sqrt((f * f).sum(axis=(1, 2)))
+    fn = critical.fabric_anisotropy(fabric6)  # |f|, the package's F_a
     sn = np.sqrt((s * s).sum(axis=(1, 2)))
     a = (f * s).sum(axis=(1, 2)) / (fn * sn)
     return fn, a

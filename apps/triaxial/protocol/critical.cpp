@@ -64,9 +64,10 @@ CriticalCheck check_critical(const CriticalSeries& s, const CriticalTest& test) 
   if (!(end >= test.window + test.pre_strain) || out.rows < std::max<std::size_t>(test.min_rows, 3) ||
       !(end - s.eps_q[first] >= 0.9 * test.window))
     return out;
-  std::vector<double> eta(n);
-  for (std::size_t k = first; k < n; ++k) eta[k] = s.q[k] / s.p[k];
-  out.eta = trend(s.eps_q, eta, first, test.window, true);
+  // eta of the window's rows only (an output-step cost: the window, not the whole history).
+  std::vector<double> eta(n - first);
+  for (std::size_t k = first; k < n; ++k) eta[k - first] = s.q[k] / s.p[k];
+  out.eta = trend(s.eps_q.subspan(first), eta, 0, test.window, true);
   out.p = trend(s.eps_q, s.p, first, test.window, true);
   out.e = trend(s.eps_q, s.e, first, test.window, false);
   out.z = trend(s.eps_q, s.z_mech, first, test.window, true);
