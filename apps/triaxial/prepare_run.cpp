@@ -342,8 +342,7 @@ bool Runner::prepare_to_target(double p0, Summary& summary, const fs::path& samp
     const double f = k == 0 ? best.friction : std::clamp(trials.back().friction + (target - trials.back().e0) / slope,
                                                          0.0, pc.max_friction);
     const Trial t = run_trial(f, count);
-    if (std::abs(t.e0 - target) <= tol) best = t;
-    if (best.count == count) break;
+    if (std::abs(t.e0 - target) <= tol) best = t;  // a full-size sample within tolerance ends the loop
   }
   if (best.count < count || std::abs(best.e0 - target) > tol)
     throw SimulationError("prepare-" + tag + ": prepare.target_e0 = " + num(target) + " not reached within " +
