@@ -75,6 +75,7 @@ std::uint64_t checksum(const State& state, const CheckpointExtra& extra) {
   }
   c.bytes(&state.clock.step, sizeof state.clock.step);
   c.bytes(&state.clock.time, sizeof state.clock.time);
+  if (state.clock.dt != 0.0) c.bytes(&state.clock.dt, sizeof state.clock.dt);  // an adaptive step's (older files: none)
   for (const auto& [k, v] : extra.doubles) {
     c.text(k);
     c.values(v);
@@ -157,6 +158,7 @@ void write_contents(h5::File& file, const State& state, const CheckpointExtra& e
   h5::Group clock = root.create_group("clock");
   clock.set_value<std::uint64_t>("step", state.clock.step);
   clock.set_value<double>("time", state.clock.time);
+  if (state.clock.dt != 0.0) clock.set_value<double>("dt", state.clock.dt);
 
   h5::Group ex = root.create_group("extra");
   h5::Group doubles = ex.create_group("doubles");
@@ -269,6 +271,7 @@ State read_checkpoint(const std::filesystem::path& path, CheckpointExtra* extra)
     const h5::Group clock = root.open_group("clock");
     state.clock.step = clock.get_value<std::uint64_t>("step");
     state.clock.time = clock.get_value<double>("time");
+    state.clock.dt = clock.has_attribute("dt") ? clock.get_value<double>("dt") : 0.0;  // an adaptive step's
 
     if (extra != nullptr) {
       *extra = CheckpointExtra{};

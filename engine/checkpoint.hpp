@@ -7,7 +7,7 @@
 //   /contacts/<f>     every allocated contact array of the registry, (m) or (m,3); attributes
 //                     has_rolling (0/1) and reference_length (3 doubles, m)
 //   /cell             attributes length, length0 (m), rate (1/s), 3 doubles each
-//   /clock            attributes step (uint64), time (s)
+//   /clock            attributes step (uint64), time (s), dt (s: only under an adaptive step)
 //   /extra/doubles/<key>, /extra/integers/<key>   1-d datasets;  /extra/strings: one attribute per key
 // Arrays are walked through the registry (components/fields.hpp), so a new field is saved and
 // restored without touching this file.

@@ -153,10 +153,34 @@ struct ServoSettings {
   double q = 0.0;               // Pa, deviator q of the rotation path, >= 0
   double rotation_rate = 0.0;   // rad/s, d alpha/dt of the rotation path (alpha: sigma1's angle from x toward z)
   double rotation_start = 0.0;  // rad, alpha at clock time 0
+  // s, > 0: the gain holds for steps up to gain_time; at a longer step (an adaptive time step,
+  // Model::time_step) it is gain x gain_time / dt, so the loop gain per step, g dt, never exceeds
+  // g gain_time (docs/physics.md section 6); 0: the gain as given at any step.
+  double gain_time = 0.0;
+};
+
+/// How the time step is chosen (docs/physics.md section 4.1).
+enum class TimeStepRule {
+  fixed,      // Model::dt throughout
+  stiffness,  // every `interval` steps, from the contacts' tangent stiffnesses (the systems' stable_step hooks)
+};
+
+/// The adaptive step (TimeStepRule::stiffness): before every step whose clock step is a multiple of
+/// `interval`, dt = min(max_dt, safety x min over the systems' stable_step), each system's bound being
+/// min over particles of sqrt(m / K) and sqrt(I / K_rot) from the summed tangent stiffnesses of the
+/// particle's contacts (docs/physics.md section 4.1). The rule reads only the state, so results stay
+/// bitwise for any thread count and chunking of World::step calls. The step in effect is Model::dt
+/// (World updates it) and Clock::dt (so a checkpoint holds it).
+struct TimeStepSettings {
+  TimeStepRule rule = TimeStepRule::fixed;
+  double safety = 0.0;  // -, stiffness: in (0, sqrt 2] (sqrt 2: the stability limit of an undamped linear network)
+  int interval = 0;     // steps between updates, >= 1
+  double max_dt = 0.0;  // s, upper bound of the step (and the step while no contact touches), > 0
 };
 
 struct Model {
-  double dt = 0.0;                  // s, time step
+  double dt = 0.0;                  // s, time step (with an adaptive rule: the step in effect, World updates it)
+  TimeStepSettings time_step;       // fixed, or the adaptive rule
   std::vector<Material> materials;  // indexed by particles.material
   ContactSettings contact;
   ServoSettings servo;

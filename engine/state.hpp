@@ -19,6 +19,7 @@ struct StateField;
 struct Clock {
   std::uint64_t step = 0;  // steps completed
   double time = 0.0;       // s, simulated time
+  double dt = 0.0;         // s, the step in effect under an adaptive rule (Model::time_step), else 0
 };
 
 class State {

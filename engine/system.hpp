@@ -15,6 +15,11 @@
 //                                                      finish work left for the next step (below)
 //   static constexpr std::string_view deferred_to = "..."; with flush: the system may leave its work
 //                                                      to that system's next run (see World::step_until)
+//   static double stable_step(const Model&, const State&);
+//                                                      the largest step its physics allows now, before
+//                                                      the safety factor (s; +inf: no bound), for an
+//                                                      adaptive time step (Model::time_step); serial,
+//                                                      from the state only
 // The setup, restore and flush hooks run under the system's access sets like `run`.
 // A system type provides `name`, `reads`, `writes` (initializer-list masks) and `run`;
 // make_system() turns it into the type-erased record the step graph schedules.
@@ -49,6 +54,7 @@ struct SystemSpec {
   std::function<void(const Model&, State&, Scratch&)> restore;
   SystemRun flush;
   std::string deferred_to;  // with flush: the system whose next run absorbs this one's pending work
+  std::function<double(const Model&, const State&)> stable_step;  // s, the step its physics allows (+inf: none)
 };
 
 template <class S>
@@ -58,6 +64,7 @@ SystemSpec make_system() {
   if constexpr (requires { &S::prepare; }) spec.prepare = &S::prepare;
   if constexpr (requires { &S::setup; }) spec.setup = &S::setup;
   if constexpr (requires { &S::restore; }) spec.restore = &S::restore;
+  if constexpr (requires { &S::stable_step; }) spec.stable_step = &S::stable_step;
   if constexpr (requires { &S::flush; }) {
     spec.flush = &S::flush;
     spec.deferred_to = std::string(S::deferred_to);

@@ -1,7 +1,9 @@
 #include "engine/world.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdlib>
+#include <limits>
 #include <string>
 
 namespace sandcell {
@@ -10,6 +12,18 @@ void validate(const Model& model, const State& state) {
   if (!(model.dt > 0.0) || !std::isfinite(model.dt))
     throw std::invalid_argument("dt = " + std::to_string(model.dt) + ": must be a finite value > 0 s");
   if (model.materials.empty()) throw std::invalid_argument("materials: at least one material is required");
+  if (model.time_step.rule == TimeStepRule::stiffness) {
+    const TimeStepSettings& t = model.time_step;
+    if (!(t.safety > 0.0 && t.safety <= std::sqrt(2.0)))
+      throw std::invalid_argument("time_step.safety = " + std::to_string(t.safety) +
+                                  ": must be in (0, sqrt 2] (sqrt 2: the stability limit of an undamped linear network)");
+    if (t.interval < 1)
+      throw std::invalid_argument("time_step.interval = " + std::to_string(t.interval) + ": must be >= 1 step");
+    if (!(t.max_dt > 0.0) || !std::isfinite(t.max_dt))
+      throw std::invalid_argument("time_step.max_dt = " + std::to_string(t.max_dt) + ": must be a finite value > 0 s");
+    if (!(state.clock.dt >= 0.0) || !std::isfinite(state.clock.dt))
+      throw std::invalid_argument("clock.dt = " + std::to_string(state.clock.dt) + ": must be a finite value >= 0 s");
+  }
   for (std::size_t m = 0; m < model.materials.size(); ++m) {
     const Material& mat = model.materials[m];
     const std::string key = "materials[" + std::to_string(m) + "].";
@@ -104,10 +118,22 @@ World::World(Model model, State state, std::vector<SystemSpec> systems, Executor
       batching_(can_batch(graph_)) {
   for (std::size_t k = 0; k < graph_.size(); ++k)  // each system's own settings (e.g. the servo's)
     if (graph_.system(k).check) graph_.system(k).check(model_);
+  if (model_.time_step.rule == TimeStepRule::stiffness) {
+    bool bounded = false;
+    for (std::size_t k = 0; k < graph_.size(); ++k) bounded = bounded || bool(graph_.system(k).stable_step);
+    if (!bounded)
+      throw std::invalid_argument(
+          "time_step.rule = stiffness: no scheduled system bounds the step (contacts disabled?): use a fixed step");
+    // A state that carries the step in effect (a checkpoint taken between updates) continues with it;
+    // one without (a fresh run, a sample prepared at a fixed step) gets the rule's at the end of
+    // construction (first_time_step).
+    if (state_.clock.dt > 0.0) model_.dt = state_.clock.dt;
+  }
   for (std::size_t k = 0; k < graph_.size(); ++k)
     if (graph_.system(k).prepare) graph_.system(k).prepare(model_, state_);
   if (!initial_forces) {
     restore();
+    first_time_step();
     return;
   }
   // Forces of the initial configuration (LAMMPS `setup`): the systems' setup hooks in reference
@@ -118,6 +144,14 @@ World::World(Model model, State state, std::vector<SystemSpec> systems, Executor
     run_hook(s, s.setup, model_, state_, *scratch_, exec_);
     check_health();
   }
+  first_time_step();
+}
+
+void World::first_time_step() {
+  // An adaptive step starting afresh (no step in effect yet): the rule's value for the state as it
+  // is, which the first step's update would give too, so that what is read before stepping (an
+  // output row) is the step the run takes.
+  if (model_.time_step.rule == TimeStepRule::stiffness && state_.clock.dt == 0.0) update_time_step();
 }
 
 void World::restore() {
@@ -138,8 +172,10 @@ void World::reset(const State& state) {
   // Copy assignment reuses a vector's buffer when its capacity suffices (the particle arrays: the
   // same sizes), so views into them stay valid; the Python module relies on it and tests it.
   state_ = state;
+  if (model_.time_step.rule == TimeStepRule::stiffness && state_.clock.dt > 0.0) model_.dt = state_.clock.dt;
   scratch_ = std::make_unique<Scratch>();
   restore();
+  first_time_step();
 }
 
 void World::check_health() const {
@@ -156,6 +192,9 @@ std::uint64_t World::step_until(std::uint64_t n, FunctionRef<bool(Cell&, const C
   try {
     scratch_->batching = batching_;
     while (done < n) {
+      if (model_.time_step.rule == TimeStepRule::stiffness &&
+          state_.clock.step % static_cast<std::uint64_t>(model_.time_step.interval) == 0)
+        update_time_step();
       exec_.begin_step();
       graph_.run(model_, state_, *scratch_);
       exec_.end_step();
@@ -171,6 +210,22 @@ std::uint64_t World::step_until(std::uint64_t n, FunctionRef<bool(Cell&, const C
   }
   flush();
   return done;
+}
+
+void World::update_time_step() {
+  // The state as after one step per call (the deferred half kick applied with the step it closes),
+  // so the rule sees the same state whatever the chunking of the calls.
+  flush();
+  scratch_->batching = batching_;
+  double bound = std::numeric_limits<double>::infinity();
+  for (std::size_t k = 0; k < graph_.size(); ++k)
+    if (graph_.system(k).stable_step) bound = std::min(bound, graph_.system(k).stable_step(model_, state_));
+  const double dt = std::min(model_.time_step.max_dt, model_.time_step.safety * bound);
+  if (!(dt > 0.0) || !std::isfinite(dt))
+    throw SimulationError("step " + std::to_string(state_.clock.step) + ": the stiffness time step is " +
+                          std::to_string(dt) + " s (a contact stiffness not finite?)");
+  model_.dt = dt;
+  state_.clock.dt = dt;
 }
 
 void World::flush() {

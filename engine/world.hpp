@@ -51,6 +51,7 @@ class World {
   /// continuing from that state.
   void reset(const State& state);
 
+  /// The model; under an adaptive time step (Model::time_step) its dt is the step in effect.
   const Model& model() const { return model_; }
   State& state() { return state_; }
   const State& state() const { return state_; }
@@ -66,6 +67,8 @@ class World {
  private:
   void check_health() const;
   void flush();
+  void update_time_step();
+  void first_time_step();
   void restore();
   static bool can_batch(const StepGraph& graph);
 

@@ -890,4 +890,58 @@ double contact_elastic_energy(const Model& model, const State& state) {
   return elastic;
 }
 
+double ContactPass::stable_step(const Model& model, const State& state) {
+  return contact_stable_step(model, state).step;
+}
+
+StableStepBound contact_stable_step(const Model& model, const State& state) {
+  StableStepBound out;
+  out.step = std::numeric_limits<double>::infinity();
+  if (model.pairs.empty()) return out;  // a model World has not finalized: no material table
+  const Particles& p = state.particles;
+  const Contacts& c = state.contacts;
+  const std::size_t n = p.size();
+  std::vector<double> k(6 * n, 0.0);  // per particle: K_x, K_y, K_z, K_rot,x, K_rot,y, K_rot,z
+  const bool rolling = model.contact.rolling == RollingModel::epsd2 || model.contact.rolling == RollingModel::epsd;
+  with_laws(model.contact, [&](auto normal, auto, auto) {
+    using N = typename decltype(normal)::type;
+    for (std::size_t q = 0; q < c.pairs.size(); ++q) {
+      const std::uint32_t i = c.pairs.i[q], j = c.pairs.j[q];
+      const Vec3 r = p.position[i] - p.position[j] - image_offset(c.pairs.image[q], state.cell);
+      const double reach = p.radius[i] + p.radius[j];
+      const double d2 = r.squaredNorm();
+      if (!(d2 < reach * reach)) continue;
+      const double d = std::sqrt(d2);
+      const Vec3 nrm = r / d;
+      const double r_star = p.radius[i] * p.radius[j] / reach;
+      const double m_star = p.mass[i] * p.mass[j] / (p.mass[i] + p.mass[j]);
+      const PairMaterial& mat = model.pair(p.material[i], p.material[j]);
+      const AtRest a = N::at_rest(mat, model.contact, r_star, m_star, reach - d);
+      const double k_t = mat.friction > 0.0 ? a.k_t : 0.0;
+      double k_r = 0.0;
+      if (rolling && mat.rolling_friction > 0.0)
+        k_r = model.contact.rolling == RollingModel::epsd2
+                  ? rolling_stiffness<RollingModel::epsd2>(a.k_n, a.k_t, mat.rolling_friction, r_star)
+                  : rolling_stiffness<RollingModel::epsd>(a.k_n, a.k_t, mat.rolling_friction, r_star);
+      for (int ax = 0; ax < 3; ++ax) {
+        const double n2 = nrm[ax] * nrm[ax];
+        const double trans = a.k_tangent * n2 + k_t * (1.0 - n2);
+        k[6 * i + ax] += trans;
+        k[6 * j + ax] += trans;
+        k[6 * i + 3 + ax] += (k_t * p.radius[i] * p.radius[i] + k_r) * (1.0 - n2);
+        k[6 * j + 3 + ax] += (k_t * p.radius[j] * p.radius[j] + k_r) * (1.0 - n2);
+      }
+    }
+  });
+  for (std::size_t i = 0; i < n; ++i)
+    for (int m = 0; m < 6; ++m) {
+      const double stiff = k[6 * i + m];
+      if (!(stiff > 0.0)) continue;
+      const double inertia = m < 3 ? p.mass[i] : 1.0 / p.inv_inertia[i];
+      const double step = std::sqrt(inertia / stiff);
+      if (step < out.step) out = StableStepBound{step, p.id[i], m >= 3, stiff};
+    }
+  return out;
+}
+
 }  // namespace sandcell

@@ -43,6 +43,8 @@ struct ContactPass {
   static void prepare(const Model& model, State& state);
   /// The forces of the initial configuration, histories frozen.
   static void setup(const Model& model, State& state, Scratch& scratch, Executor& exec);
+  /// The step the contacts allow now (contact_stable_step), for an adaptive time step.
+  static double stable_step(const Model& model, const State& state);
 };
 
 /// Contact pass private buffers: last step's regime of each pair and the order in which the pass
@@ -68,6 +70,21 @@ inline constexpr std::size_t k_contact_grain = 1024;
 /// The elastic energy stored in the touching contacts (normal springs, tangential and rolling
 /// histories), J, as the model's laws define it; serial, in pair order (an output-step cost).
 double contact_elastic_energy(const Model& model, const State& state);
+
+/// Where the stiffness time step is bound: the particle, the mode and its stiffness.
+struct StableStepBound {
+  double step = 0.0;            // s, min over particles of sqrt(m / K) and sqrt(I / K_rot) (+inf: no contact)
+  std::uint32_t id = 0;         // the particle's id
+  bool rotational = false;      // sqrt(I / K_rot) (the tangential and rolling springs on its rotation)
+  double stiffness = 0.0;       // N/m or N m/rad, the summed K of that particle, axis and mode
+};
+
+/// The largest step the contacts allow now, before the safety factor (docs/physics.md section 4.1):
+/// per particle and axis a, K_a = sum over its touching contacts of k_n' n_a^2 + k_t (1 - n_a^2)
+/// and K_rot,a = sum (k_t r^2 + k_r) (1 - n_a^2), with k_n' = dF_n/d delta the tangent normal
+/// stiffness, k_t counted only with friction and k_r (the rolling law's, epsd2 and epsd) only with
+/// rolling friction; the bound is the least sqrt(m / K_a), sqrt(I / K_rot,a). Serial, in pair order.
+StableStepBound contact_stable_step(const Model& model, const State& state);
 
 /// The registered normal laws' names, comma-separated (for messages).
 std::string normal_law_names();

@@ -85,6 +85,7 @@ double median_diameter(const Particles& particles) { return median_diameter(part
 
 Measures measure(const Model& model, const State& state, Executor& exec, const MeasureOptions& options) {
   Measures m;
+  m.dt = model.dt;
   const Particles& p = state.particles;
   const Contacts& c = state.contacts;
   const Cell& cell = state.cell;

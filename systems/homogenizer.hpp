@@ -102,6 +102,7 @@ struct Measures {
                                    // strain_rate_tensor when the cell shears)
   double inertial_number_axial = 0.0;  // -, |eps_dot_1| d50 sqrt(rho / p): axis 1 alone, the form a set
                                        // inertial number (ServoSettings::inertial_number) controls
+  double dt = 0.0;                     // s, the time step in effect (Model::dt; adaptive: Model::time_step)
 };
 
 struct MeasureOptions {

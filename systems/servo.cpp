@@ -46,6 +46,8 @@ void validate(const ServoSettings& servo) {
   if (!(servo.integral_strain >= 0.0) || !std::isfinite(servo.integral_strain))
     fail("integral_strain", servo.integral_strain, "must be a finite value >= 0 (0: integral_time alone)");
   if (servo.interval < 1) fail("interval", servo.interval, "must be >= 1 step");
+  if (!(servo.gain_time >= 0.0) || !std::isfinite(servo.gain_time))
+    fail("gain_time", servo.gain_time, "must be a finite value >= 0 s (0: the gain at any step)");
   if (!(servo.integral_time >= 0.0) || !std::isfinite(servo.integral_time))
     fail("integral_time", servo.integral_time, "must be a finite value >= 0 s (0: no integral term)");
   if (!(servo.b >= 0.0 && servo.b <= 1.0)) fail("b", servo.b, "must be in [0, 1]");
@@ -118,16 +120,25 @@ Vec3 path_targets(const ServoSettings& servo, double s1) {
 namespace {
 // The PI law of one stress-controlled axis on its normalized error, capped at +-cap, with integral
 // time t_i; `integral` null or t_i = 0: a P law.
+// The gain at this update: servo.gain, or at a step above gain_time (an adaptive time step)
+// gain x gain_time / dt, so the loop gain per step g dt stays at most g gain_time. `interval` is
+// dt x servo.interval. With gain_time = 0, or dt <= gain_time, exactly servo.gain.
+double step_gain(const ServoSettings& servo, double interval) {
+  const double limit = servo.gain_time * servo.interval;  // s, gain_time per update
+  return servo.gain_time > 0.0 && interval > limit ? servo.gain * (limit / interval) : servo.gain;
+}
+
 double pi_rate(const ServoSettings& servo, double error, double* integral, double interval, double cap, double t_i) {
-  if (integral == nullptr || !(t_i > 0.0)) return std::clamp(servo.gain * error, -cap, cap);
+  const double gain = step_gain(servo, interval);
+  if (integral == nullptr || !(t_i > 0.0)) return std::clamp(gain * error, -cap, cap);
   // PI: the integral removes the lag a P law keeps while the target moves (error ~ rate / g).
   // Anti-windup: the integral advances only while the output is inside the cap, or when the
   // error would bring it back inside.
   double& i = *integral;
   const double trial_i = i + error * interval;
-  const double trial = servo.gain * (error + trial_i / t_i);
+  const double trial = gain * (error + trial_i / t_i);
   if (std::abs(trial) <= cap || trial * error < 0.0) i = trial_i;
-  return std::clamp(servo.gain * (error + i / t_i), -cap, cap);
+  return std::clamp(gain * (error + i / t_i), -cap, cap);
 }
 
 // The cap and the integral time of the stress-controlled axes at one update, from the rates of the

@@ -12,5 +12,5 @@ from ._sandcell import (  # noqa: F401
     SimulationError, State, StressInvariants, TestSpec, World, __version__, alpha_deg, append_row, axes_rotation_deg,
     derived_gain, derived_servo, finish_preparation, log_strain, median_diameter, noncoaxiality_deg, p0_tag, principal,
     principal_rotation_deg, rayleigh_time, read_checkpoint, sample_diameters, series_columns, servo_time_unit,
-    shear_ratio, strain_rate_tensor, test_paths, undrained_path, write_checkpoint,
+    shear_ratio, stable_step, strain_rate_tensor, test_paths, TimeStepSettings, undrained_path, write_checkpoint,
 )

@@ -60,6 +60,7 @@ const Names<StressPath> k_paths = [] {
   for (const StressPathSpec& s : stress_paths()) n.items.emplace_back(s.name.data(), s.id);
   return n;
 }();
+const Names<TimeStepRule> k_time_step_rules{{{"fixed", TimeStepRule::fixed}, {"stiffness", TimeStepRule::stiffness}}};
 const Names<AxisControl> k_controls{
     {{"strain", AxisControl::strain}, {"stress", AxisControl::stress}, {"volume", AxisControl::volume}}};
 // The laws' names: their registries (systems/laws/mindlin.hpp TangentialLaws, rolling.hpp k_rolling_laws).
@@ -494,6 +495,8 @@ PYBIND11_MODULE(_sandcell, m) {
            std::tuple{"normal_stress", &ServoSettings::normal_stress,
                       "Pa (S_zz of the simple_shear path, compression positive; > 0 on that path)"},
            std::tuple{"q", &ServoSettings::q, "Pa (deviator of the rotation path)"},
+           std::tuple{"gain_time", &ServoSettings::gain_time,
+                      "s (> 0: the gain is scaled by gain_time / dt at a longer step; 0: as given)"},
        }) {
     const std::string key = std::string("servo.") + name;
     servo_settings.def_property(name, [member](const ServoSettings& s) { return s.*member; },
@@ -625,6 +628,41 @@ PYBIND11_MODULE(_sandcell, m) {
         "The principal axes' turn off the cell axes, 1/2 asin(2 |tau| / (s1 - s3)), degrees");
   m.def("shear_ratio", &shear_ratio, py::arg("stress"), "Largest |shear stress| / p of a 3x3 stress");
 
+  py::class_<TimeStepSettings>(m, "TimeStepSettings",
+                               "How the time step is chosen: 'fixed' (Model.dt) or 'stiffness' (docs/physics.md 4.1)")
+      .def(py::init([](const std::string& rule, double safety, int interval, double max_dt) {
+             TimeStepSettings t;
+             t.rule = k_time_step_rules.parse("time_step.rule", rule);
+             t.safety = safety;
+             t.interval = interval;
+             t.max_dt = max_dt;
+             return t;
+           }),
+           py::arg("rule") = "fixed", py::arg("safety") = 0.8, py::arg("interval") = 100, py::arg("max_dt") = 0.0,
+           "World checks the values (safety in (0, sqrt 2], interval >= 1, max_dt > 0 s) under 'stiffness'")
+      .def_property(
+          "rule", [](const TimeStepSettings& t) { return k_time_step_rules.name(t.rule); },
+          [](TimeStepSettings& t, const std::string& v) { t.rule = k_time_step_rules.parse("time_step.rule", v); })
+      .def_readwrite("safety", &TimeStepSettings::safety)
+      .def_readwrite("interval", &TimeStepSettings::interval)
+      .def_readwrite("max_dt", &TimeStepSettings::max_dt);
+  m.def(
+      "stable_step",
+      [](const Model& model, const State& state) {
+        Model finalized = model;
+        finalized.finalize();
+        const StableStepBound b = contact_stable_step(finalized, state);
+        py::dict d;
+        d["step"] = b.step;
+        d["id"] = b.id;
+        d["rotational"] = b.rotational;
+        d["stiffness"] = b.stiffness;
+        return d;
+      },
+      py::arg("model"), py::arg("state"),
+      "The step the state's touching contacts allow before the safety factor (s; inf: none touch), with the sphere "
+      "(id), the mode (rotational) and its summed stiffness that bound it (docs/physics.md section 4.1)");
+
   py::class_<Model>(m, "Model", "Everything constant during a run (engine/model.hpp)")
       .def(py::init([](double dt, std::vector<Material> materials, std::optional<ContactSettings> contact,
                        std::optional<ServoSettings> servo) {
@@ -641,7 +679,10 @@ PYBIND11_MODULE(_sandcell, m) {
           "dt", [](const Model& m) { return m.dt; }, [](Model& m, double v) { m.dt = positive("dt", v, "s"); })
       .def_readwrite("materials", &Model::materials)
       .def_readwrite("contact", &Model::contact)
-      .def_readwrite("servo", &Model::servo);
+      .def_readwrite("servo", &Model::servo)
+      .def_readwrite("time_step", &Model::time_step,
+                     "fixed (dt throughout) or stiffness (World sets dt every interval steps; World.model.dt: the step "
+                     "in effect)");
 
   m.def(
       "rayleigh_time",

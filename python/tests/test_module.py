@@ -138,3 +138,30 @@ def test_every_partition_steps_bitwise_the_same(loose_sample):
             assert np.array_equal(world.particles[name], reference.particles[name]), (threads, partition, name)
     with pytest.raises(ValueError, match="partition = 'static': allowed 'adaptive', 'owner'"):
         sc.World(model, state, threads=2, partition="static")
+
+
+def test_stiffness_time_step_from_python(loose_sample):
+    # time_step = stiffness: World sets dt from the contacts (safety x sc.stable_step, capped at
+    # max_dt) when it is built and every `interval` steps, bitwise for any thread count.
+    _, state = loose_sample
+    model = base_model()  # its own: the fixture's model is shared by the session's tests
+    model.time_step = sc.TimeStepSettings("stiffness", safety=0.8, interval=10, max_dt=10 * model.dt)
+    assert model.time_step.rule == "stiffness"
+    world = sc.World(model, state, threads=1, initial_forces=False)
+    bound = sc.stable_step(model, world.state())
+    assert 0 < bound["step"] < float("inf") and bound["rotational"]  # friction and rolling springs: rotation bounds
+    assert world.model.dt == 0.8 * bound["step"]  # the same arithmetic as the engine's: equal to the bit
+    # The update before step 31 (clock step 30, a multiple of the interval) reads the state after 30.
+    world.step(30)
+    expected = 0.8 * sc.stable_step(model, world.state())["step"]
+    world.step(5)
+    assert world.model.dt == expected != bound["step"] * 0.8
+    other = sc.World(model, state, threads=2, initial_forces=False)
+    other.step(35)
+    assert other.model.dt == world.model.dt
+    assert np.array_equal(world.particles["position"], other.particles["position"])
+    with pytest.raises(ValueError, match="time_step.rule = 'adaptive'|time_step.rule"):
+        sc.TimeStepSettings("adaptive")
+    model.time_step = sc.TimeStepSettings("stiffness", safety=2.0, max_dt=model.dt)
+    with pytest.raises(ValueError, match="time_step.safety = 2"):
+        sc.World(model, state, initial_forces=False)

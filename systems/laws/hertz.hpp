@@ -45,7 +45,7 @@ struct Hertz {
   static AtRest at_rest(const PairMaterial& mat, const ContactSettings&, double r_star, double, double overlap) {
     const double sqrt_rd = std::sqrt(r_star * overlap);
     return AtRest{4.0 / 3.0 * mat.e_star * sqrt_rd, 8.0 * mat.g_star * sqrt_rd,
-                  8.0 / 15.0 * mat.e_star * sqrt_rd * overlap * overlap};
+                  8.0 / 15.0 * mat.e_star * sqrt_rd * overlap * overlap, 2.0 * mat.e_star * sqrt_rd};
   }
 };
 

@@ -44,7 +44,7 @@ struct Hooke {
   static AtRest at_rest(const PairMaterial& mat, const ContactSettings& contact, double r_star, double m_star,
                         double overlap) {
     const double k_n = normal_stiffness(mat.e_star, contact.parameters.at("characteristic_velocity"), r_star, m_star);
-    return AtRest{k_n, k_n, 0.5 * k_n * overlap * overlap};
+    return AtRest{k_n, k_n, 0.5 * k_n * overlap * overlap, k_n};
   }
 };
 

@@ -14,7 +14,8 @@
 //   static double gamma_t(const PairMaterial&, double gamma_n);  tangential damping coefficient
 //   static double force(double k_n, double gamma_n, double overlap, double v_n);   F_n (signed)
 //   static AtRest at_rest(const PairMaterial&, const ContactSettings&, double r_star, double m_star,
-//                         double overlap);   k_n, k_t and the stored normal energy (measures)
+//                         double overlap);   k_n, k_t, the stored normal energy and the tangent
+//                                            normal stiffness dF_n/d delta (measures, time step)
 // Tangential law (systems/laws/mindlin.hpp; selected by ContactSettings::tangential): updates its
 //   per-contact history (ContactS::tangential) and returns the tangential force, capped by Coulomb;
 //   energy(k_t, history) is its stored energy.
@@ -46,9 +47,10 @@ struct Stiffness {
 };
 
 struct AtRest {
-  double k_n;     // N/m
-  double k_t;     // N/m
-  double energy;  // J, stored elastic energy of the normal spring
+  double k_n;        // N/m, F_n / delta (the force's secant stiffness)
+  double k_t;        // N/m
+  double energy;     // J, stored elastic energy of the normal spring
+  double k_tangent;  // N/m, dF_n / d delta (the stiffness a small oscillation sees: the time step's)
 };
 
 /// A named parameter of a law (ContactSettings::parameters[name]): its units, range and meaning,

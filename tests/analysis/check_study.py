@@ -29,7 +29,7 @@ def run_study(preset, folder):
 out, data = run_study("smoke", "study")
 runs = {m["name"]: m for m in data["runs"]}
 ref = runs["ref"]
-assert set(runs) == {"ref", "dt_0.4", "I_0.03", "E_x0.3", "e_0.9", "N_160", "seed_2"}, sorted(runs)
+assert set(runs) == {"ref", "dt_0.4", "I_0.03", "E_x0.3", "e_0.9", "N_160", "seed_2", "safety_0.8"}, sorted(runs)
 # The reference's errors are zero by definition; every metric is finite.
 for key in ("peak_eta", "res_eta", "res_e", "max_dilation"):
     assert ref[f"err_{key}"] == 0.0
@@ -37,7 +37,7 @@ for key in ("peak_eta", "res_eta", "res_e", "max_dilation"):
         assert m[key] == m[key], f"{m['name']}: {key} is NaN"
 # dt, I and e variants shear the reference's own prepared sample: the same e0 bit for bit; the
 # seed and N variants prepare another sample.
-for name in ("dt_0.4", "I_0.03", "e_0.9"):
+for name in ("dt_0.4", "I_0.03", "e_0.9", "safety_0.8"):
     assert runs[name]["e0"] == ref["e0"], (name, runs[name]["e0"], ref["e0"])
 for name in ("seed_2", "N_160"):
     assert runs[name]["e0"] != ref["e0"], name
@@ -45,6 +45,11 @@ for name in ("seed_2", "N_160"):
 # (within one step of rounding each, and the +1 of the stop test).
 assert abs(runs["dt_0.4"]["steps"] / ref["steps"] - 0.5) < 3.0 / ref["steps"], runs["dt_0.4"]["steps"]
 assert abs(runs["I_0.03"]["steps"] / ref["steps"] - 1.0 / 3.0) < 3.0 / ref["steps"], runs["I_0.03"]["steps"]
+# The stiffness step: at 0.5 MPa the contacts of a sheared sample allow about 0.5 t_R before the
+# safety factor (docs/physics.md section 4.1: 0.52 t_R measured at 1,000 spheres), so safety 0.8
+# steps about 0.4 t_R, twice the reference's 0.2 t_R: fewer than 0.8x its steps to the same strain.
+assert runs["safety_0.8"]["steps"] < 0.8 * ref["steps"], (runs["safety_0.8"]["steps"], ref["steps"])
+assert runs["safety_0.8"]["set_safety"] == 0.8
 # The measured inertial number follows the set one (it is (eps_dot_1 - eps_dot_3) d50 sqrt(rho/p),
 # so not equal to the set axial value, but 3x the rate is 2-4x the measure).
 ratio = runs["I_0.03"]["I"] / ref["I"]

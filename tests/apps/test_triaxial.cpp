@@ -150,6 +150,13 @@ TEST_CASE("triaxial: each class of bad input exits 2 naming the key, and clobber
        "shear.shear_rates: only path \"strain\" sets the cell's shear rates"},
       {"a rotation table with no rotation test", base + "[rotation]\neta = 0.3\n",
        "[rotation]: no test of tests.path is \"rotation\""},
+      {"a Rayleigh fraction with the stiffness step", base + "[time]\nstep = \"stiffness\"\ndt_fraction = 0.2\n",
+       "time.dt_fraction = given: acts only with time.step = \"rayleigh\""},
+      {"a stiffness setting with the Rayleigh step", base + "[time]\nsafety = 0.8\n",
+       "time.safety = given: acts only with time.step = \"stiffness\""},
+      {"a safety factor above the stability limit", base + "[time]\nstep = \"stiffness\"\nsafety = 2.0\n",
+       "time.safety = 2: must be in [0.001, 1.414]"},
+      {"an unknown time step rule", base + "[time]\nstep = \"adaptive\"\n", "time.step = \"adaptive\""},
   };
   for (const Case& c : cases) {
     const std::string what = c.what;
@@ -860,5 +867,44 @@ TEST_CASE("triaxial: a campaign runs tests at once from one prepared sample, eac
   const std::vector<double> st = dataset(dir / "c" / "p-b1.00-p0_100kPa.h5", "/series/stress");  // (rows, 6)
   const double* last = st.data() + st.size() - 6;
   CHECK((last[1] - last[2]) / (last[0] - last[2]) == doctest::Approx(1.0).epsilon(0.02));
+  fs::remove_all(dir);
+}
+
+TEST_CASE("triaxial: time.step = stiffness: the step follows the contacts, and stop and --resume stay bitwise") {
+  const fs::path dir = fresh_dir("resume_stiffness");
+  // interval 37: the stops every 1000 steps of a job fall between updates of the step.
+  write(dir / "small.toml", k_small + "[time]\nstep = \"stiffness\"\ninterval = 37\n");
+  const fs::path a = dir / "a", b = dir / "b";
+  const Result whole = run({(dir / "small.toml").string(), "--out", a.string(), "--threads", "1"});
+  INFO(whole.err);
+  REQUIRE(whole.code == 0);
+  Result r = run({(dir / "small.toml").string(), "--out", b.string(), "--threads", "2", "--stop-after", "1000"});
+  int stops = 0;
+  while (r.code == 3 && stops < 100) {
+    ++stops;
+    r = run({(dir / "small.toml").string(), "--out", b.string(), "--resume", "--threads", stops % 2 ? "3" : "1",
+             "--stop-after", "1000"});
+  }
+  REQUIRE(r.code == 0);
+  CHECK(stops >= 2);
+  const std::string test = "p-b0.50-p0_100kPa";
+  const State sa = read_checkpoint(a / (test + ".checkpoint.h5"));
+  const State sb = read_checkpoint(b / (test + ".checkpoint.h5"));
+  CHECK(first_difference(sa.particles, sb.particles) == "");
+  CHECK(first_difference(sa.contacts, sb.contacts) == "");
+  CHECK(sa.clock.time == sb.clock.time);
+  CHECK(sa.clock.dt == sb.clock.dt);
+  for (const char* name : {"/series/step", "/series/dt", "/series/stress", "/series/e"}) {
+    CAPTURE(name);
+    CHECK(dataset(a / (test + ".h5"), name) == dataset(b / (test + ".h5"), name));
+  }
+  // The series holds the step of each row: the rule's from the first row on (set when the shear
+  // stage's World is built), moving with the contacts as the sample shears.
+  const std::vector<double> dt = dataset(a / (test + ".h5"), "/series/dt");
+  REQUIRE(dt.size() > 3);
+  const double lo = *std::min_element(dt.begin(), dt.end()), hi = *std::max_element(dt.begin(), dt.end());
+  CHECK(lo > 0.0);
+  CHECK(hi > lo);  // it adapted during the test
+  CHECK(sa.clock.dt == dt.back());
   fs::remove_all(dir);
 }

@@ -61,11 +61,12 @@ PROG = os.environ.get("SANDCELL_ANALYZE_PROG", "study.py")
 
 
 PRESETS = {
+    # safety: the stiffness time step's factors (time.step = "stiffness", docs/physics.md section 4.1).
     "quick": dict(count=400, strain=0.12, dt=[0.05, 0.1, 0.2, 0.35, 0.5], I=[3e-4, 1e-3, 3e-3, 1e-2],
-                  E=[1.0, 0.1, 0.01], e=[0.5, 0.1, 0.9], N=[400, 200, 800], seeds=[2, 3]),
+                  E=[1.0, 0.1, 0.01], e=[0.5, 0.1, 0.9], N=[400, 200, 800], seeds=[2, 3], safety=[0.6, 0.8, 1.0]),
     # A seconds-long pipeline check (tests/CMakeLists.txt, label analysis): not physics.
     "smoke": dict(count=120, strain=0.03, dt=[0.2, 0.4], I=[1e-2, 3e-2], E=[1.0, 0.3], e=[0.5, 0.9], N=[120, 160],
-                  seeds=[2]),
+                  seeds=[2], safety=[0.8]),
     # Sample size and seed scatter at one practical setting (size_study): N x seeds.
     # `largest_seeds` (default: all) runs the largest N for the first seeds only; each 20,000-sphere
     # run takes ~23 min on 2 cores, 15 of them its preparation. `snapshots`: particle snapshots per
@@ -81,7 +82,8 @@ PRESETS = {
     "inertia": dict(count=2000, strain=0.1, dt=[0.2], I=[1e-5, 3e-5, 1e-4, 3e-4, 1e-3, 3e-3, 1e-2], E=[1.0],
                     e=[0.5], N=[2000], seeds=[]),
     "full": dict(count=2000, strain=0.3, dt=[0.05, 0.1, 0.2, 0.35, 0.5], I=[1e-5, 1e-4, 1e-3, 3e-3, 1e-2],
-                 E=[1.0, 0.1, 0.01], e=[0.5, 0.1, 0.9], N=[2000, 500, 1000, 5000, 20000], seeds=[2, 3, 4]),
+                 E=[1.0, 0.1, 0.01], e=[0.5, 0.1, 0.9], N=[2000, 500, 1000, 5000, 20000], seeds=[2, 3, 4],
+                 safety=[0.6, 0.8, 1.0]),
 }
 
 
@@ -167,7 +169,10 @@ def variant_config(base, preset, ref, **over):
     cfg["tests"] = {"path": first(tests.get("path", "constant_p")), "b": float(first(tests.get("b", 0.5))), "p0": p0}
     cfg["sample"]["count"] = int(s["N"])
     cfg["sample"]["seed"] = int(s["seed"])
-    cfg["time"]["dt_fraction"] = float(s["dt"])
+    if s.get("safety"):  # the stiffness step in place of the Rayleigh fraction (whose key it refuses)
+        cfg["time"] = {"step": "stiffness", "safety": float(s["safety"])}
+    else:
+        cfg["time"]["dt_fraction"] = float(s["dt"])
     mat = cfg["material"]
     young0 = float(base.get("material", {}).get("young", 70e9))
     mat["young"] = young0 * float(s["E"])
@@ -184,7 +189,8 @@ def variant_config(base, preset, ref, **over):
 
 
 def time_step(cfg):
-    """dt_fraction x the Rayleigh time of the smallest sphere (as the app computes it)."""
+    """dt_fraction x the Rayleigh time of the smallest sphere (as the app computes it); for the stiffness step its
+    bound, max_dt_fraction (default 1): the most a step can be, so the step count it gives is the fewest."""
     sample, mat = cfg["sample"], cfg["material"]
     if sample.get("distribution", "uniform") == "gradation":
         d_min = sample["gradation"][0][0]
@@ -192,7 +198,9 @@ def time_step(cfg):
         d_min = sample.get("d_min", 5e-3)
     young, nu, rho = float(mat.get("young", 70e9)), float(mat.get("poisson", 0.3)), float(mat.get("density", 2650.0))
     shear = young / (2.0 * (1.0 + nu))
-    return cfg["time"]["dt_fraction"] * math.pi * 0.5 * d_min * math.sqrt(rho / shear) / (0.1631 * nu + 0.8766)
+    t = cfg["time"]
+    fraction = t.get("max_dt_fraction", 1.0) if t.get("step") == "stiffness" else t["dt_fraction"]
+    return fraction * math.pi * 0.5 * d_min * math.sqrt(rho / shear) / (0.1631 * nu + 0.8766)
 
 
 def run_variant(name, cfg, args, share_sample_from=None):
@@ -412,7 +420,7 @@ def main(argv=None):
     ap.add_argument("--preset", choices=sorted(PRESETS), default="quick")
     ap.add_argument("--out", default=None, help="output folder (default: results/study-<preset>)")
     ap.add_argument("--threads", type=int, default=2, help="threads of each run (default 2)")
-    ap.add_argument("--axes", default="dt,I,E,e,N,seed", help="axes to vary (default: all)")
+    ap.add_argument("--axes", default="dt,I,E,e,N,seed,safety", help="axes to vary (default: all)")
     ap.add_argument("--window", type=float, default=0.03, help="residual window, axial strain (0.03)")
     ap.add_argument("--tolerance", default="",
                     help="accepted error per metric for the recommendation, e.g. peak=0.05,res=0.05,e=0.01,d=0.05 "
@@ -430,8 +438,8 @@ def main(argv=None):
         fail(f"--triaxial = {args.triaxial}: not an executable (give the path of the triaxial binary)")
     axes = args.axes.split(",")
     for a in axes:
-        if a not in ("dt", "I", "E", "e", "N", "seed"):
-            fail(f"--axes: unknown axis {a!r}; allowed: dt, I, E, e, N, seed")
+        if a not in ("dt", "I", "E", "e", "N", "seed", "safety"):
+            fail(f"--axes: unknown axis {a!r}; allowed: dt, I, E, e, N, seed, safety")
     names = dict(peak="peak_eta", res="res_eta", e="res_e", d="max_dilation")
     tolerances = {}
     for item in filter(None, args.tolerance.split(",")):
@@ -474,6 +482,8 @@ def main(argv=None):
         plan += [(f"N_{v}", "N", dict(N=v), False) for v in preset["N"][1:]]
     if "seed" in axes:
         plan += [(f"seed_{v}", "seed", dict(seed=v), False) for v in preset["seeds"]]
+    if "safety" in axes:  # the stiffness time step; shears the reference's sample
+        plan += [(f"safety_{v:g}", "safety", dict(safety=v), True) for v in preset.get("safety", [])]
 
     # Without other seeds there is no noise floor: every error would pass a NaN tolerance.
     n_seeds = 1 + sum(1 for _, axis, _, _ in plan if axis == "seed")
@@ -523,16 +533,16 @@ def main(argv=None):
         return not m["left_path"] and all(not (m[f"err_{k}"] > tol[k]) for k, _ in METRICS)
 
     per_axis = {}
-    for axis in ("dt", "I"):  # the axes that change the cost (e does not)
+    for axis in ("dt", "I", "safety"):  # the axes that change the cost (e does not)
         ok = [m for m in runs if m["axis"] in ("ref", axis) and within(m)]
         per_axis[axis] = min(ok, key=lambda m: m["cost"]) if any(m["axis"] == axis for m in runs) and ok else None
-    candidates = [m for m in runs if m["axis"] in ("ref", "dt", "I", "e")]
+    candidates = [m for m in runs if m["axis"] in ("ref", "dt", "I", "e", "safety")]
     ok = [m for m in candidates if within(m)]
     best = min(ok, key=lambda m: m["cost"]) if ok else None
 
-    fields = ["name", "axis", "set_dt", "set_I", "set_E", "set_e", "set_N", "set_seed", "rate", "e0", "peak_eta",
-              "peak_strain", "res_eta", "res_e", "max_dilation", "I", "max_overlap", "steps", "wall", "psteps_per_s",
-              "cost"] + [f"err_{k}" for k, _ in METRICS] + ["left_path"]
+    fields = ["name", "axis", "set_dt", "set_I", "set_E", "set_e", "set_N", "set_seed", "set_safety", "rate", "e0",
+              "peak_eta", "peak_strain", "res_eta", "res_e", "max_dilation", "I", "max_overlap", "steps", "wall",
+              "psteps_per_s", "cost"] + [f"err_{k}" for k, _ in METRICS] + ["left_path"]
     with open(os.path.join(args.out, "study.csv"), "w", newline="") as f:
         w = csv.DictWriter(f, fieldnames=fields, extrasaction="ignore")
         w.writeheader()
@@ -572,14 +582,16 @@ def main(argv=None):
     lines.append("")
     if best:
         lines.append(f"Recommended (cheapest single change from the reference with every error within the tolerance): "
-                     f"**{best['name']}** (dt = {best['set_dt']} dt_R, I = {best['set_I']:g}, e = {best['set_e']}): "
+                     f"**{best['name']}** ("
+                     + (f"stiffness step, safety {best['set_safety']:g}" if best.get("set_safety")
+                        else f"dt = {best['set_dt']} dt_R") + f", I = {best['set_I']:g}, e = {best['set_e']}): "
                      f"{r0['cost'] / best['cost']:.1f}x cheaper than the reference per unit strain.")
     else:
         lines.append("No variant has every error within the tolerance.")
     for axis, m in per_axis.items():
         if m is None:
             continue
-        key = dict(dt="set_dt", I="set_I")[axis]
+        key = dict(dt="set_dt", I="set_I", safety="set_safety")[axis]
         lines.append(f"- {axis}: the cheapest value within the tolerance is {m[key]:g} "
                      f"({r0['cost'] / m['cost']:.1f}x cheaper than the reference per unit strain)")
     lines.append("(one setting varied at a time: a combination of them is not measured here)")
@@ -589,7 +601,7 @@ def main(argv=None):
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     fig, axs = plt.subplots(2, 2, figsize=(11, 8.5))
-    colors = dict(ref="k", dt="C0", I="C1", E="C2", e="C3", N="C4", seed="C7")
+    colors = dict(ref="k", dt="C0", I="C1", E="C2", e="C3", N="C4", seed="C7", safety="C5")
     for ax, (key, label) in zip(axs.flat, METRICS):
         finite = [m for m in runs if math.isfinite(m[f"err_{key}"])]
         pts = [(m["cost"], m[f"err_{key}"]) for m in finite]

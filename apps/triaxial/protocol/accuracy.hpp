@@ -70,9 +70,9 @@ class AccuracyWatch {
        "validated up to 3e-3 (experiments/2026-11-22-study-inertia): lower shear.strain_rate or shear.inertial_number"},
       {"unbalanced force ratio", 0.1,
        "forces far from balance: lower shear.strain_rate or shear.inertial_number; from the first rows on, "
-       "lower time.dt_fraction (stiff contacts at high p: 0.35 t_R was unstable at 16 MPa)"},
+       "lower time.dt_fraction or time.safety (stiff contacts at high p: 0.35 t_R was unstable at 16 MPa)"},
       {"kinetic / elastic energy", 0.05,
-       "inertia carries load: lower shear.strain_rate or shear.inertial_number, or time.dt_fraction"},
+       "inertia carries load: lower shear.strain_rate or shear.inertial_number, or time.dt_fraction (time.safety)"},
       {"max overlap / radius", 0.05, "beyond small-strain Hertz contact: raise material.young or lower p0"},
   };
 

@@ -166,13 +166,25 @@ void parse_contact(const toml::table& root, const std::string& source, ContactSe
   s.check_unknown();
 }
 
-// [time]: the time step as a fraction of the Rayleigh time.
-void parse_time(const toml::table& root, const std::string& source, double& dt_fraction) {
+// [time]: the shearing's time step, a fraction of the Rayleigh time (step = "rayleigh") or from the
+// contacts' stiffnesses (step = "stiffness", docs/physics.md section 4.1).
+void parse_time(const toml::table& root, const std::string& source, Config& c) {
   Section s = section(root, "time", source);
+  s.choice("step", c.dt_rule, {{"rayleigh", TimeStepRule::fixed}, {"stiffness", TimeStepRule::stiffness}});
+  const bool stiffness = c.dt_rule == TimeStepRule::stiffness;
+  // Each rule's keys would have no effect under the other.
+  if (stiffness && s.get("dt_fraction"))
+    s.fail("dt_fraction", "given", "acts only with time.step = \"rayleigh\" (the stiffness step's bound: time.max_dt_fraction)");
+  for (const char* key : {"safety", "interval", "max_dt_fraction"})
+    if (!stiffness && s.get(key)) s.fail(key, "given", "acts only with time.step = \"stiffness\"");
   // Above one Rayleigh time an explicit step through a dense Hertzian packing is unstable
   // (the contact period at overlaps of ~1e-3 R is about 1-3 Rayleigh times).
-  s.number("dt_fraction", dt_fraction, 1e-6, 1.0,
+  s.number("dt_fraction", c.dt_fraction, 1e-6, 1.0,
            "must be in (0, 1] (fraction of the Rayleigh time; stability limit 1)");
+  // sqrt 2: the leapfrog's limit on an undamped linear network bounded by the summed stiffnesses.
+  s.number("safety", c.dt_safety, 1e-3, std::sqrt(2.0), "must be in [0.001, 1.414] (1.414 = sqrt 2, the stability limit)");
+  s.integer("interval", c.dt_interval, 1, 1'000'000, "must be an integer in [1, 1e6] steps");
+  s.number("max_dt_fraction", c.max_dt_fraction, 1e-6, 2.0, "must be in (0, 2] (fraction of the Rayleigh time)");
   s.check_unknown();
 }
 
@@ -234,7 +246,7 @@ Config parse_config(const std::string& text, const std::string& source) {
   parse_sample(root, source, c.sample);
   parse_material(root, source, c.material);
   parse_contact(root, source, c.contact);
-  parse_time(root, source, c.dt_fraction);
+  parse_time(root, source, c);
   parse_prepare(root, source, c.prepare);
   parse_shear(root, source, c.shear);
   parse_tests(root, source, c);

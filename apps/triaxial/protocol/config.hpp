@@ -146,7 +146,12 @@ struct Config {
   SampleConfig sample;
   Material material;
   ContactSettings contact;   // skin 0 in the file: derived (0.1 x smallest diameter)
-  double dt_fraction = 0.2;  // -, dt / Rayleigh time of the smallest sphere
+  double dt_fraction = 0.2;  // -, dt / Rayleigh time of the smallest sphere (time.step = "rayleigh"; the
+                             // preparation's too unless prepare.dt_fraction)
+  TimeStepRule dt_rule = TimeStepRule::fixed;  // time.step: "rayleigh" (fixed) or "stiffness" (shearing only)
+  double dt_safety = 0.8;                      // -, time.safety (stiffness): dt = safety x min sqrt(m / K)
+  int dt_interval = 100;                       // steps, time.interval (stiffness): between updates of dt
+  double max_dt_fraction = 1.0;                // -, time.max_dt_fraction (stiffness): the largest dt / t_R
   PrepareConfig prepare;
   ShearConfig shear;
   std::vector<TestSpec> tests;  // the campaign: path x b x p0

@@ -123,12 +123,16 @@ void derive_model(Protocol& plan) {
   m.materials = {config.material};
   m.contact = config.contact;
   if (m.contact.skin == 0.0) m.contact.skin = 0.2 * plan.r_min;  // 0.1 x the smallest diameter
-  m.dt = config.dt_fraction * rayleigh_time(plan.r_min, config.material);
-  plan.servo_time = servo_time_unit(m.dt, plan.r_min, config.material);
+  const double t_r = rayleigh_time(plan.r_min, config.material);
+  // time.step = "stiffness": the shear stage's dt starts (and stays at most) at max_dt_fraction t_R;
+  // the World sets it from the contacts before the first step (shear_model). The servo's time unit
+  // is the floor, so its gain per step follows the step (ServoSettings::gain_time).
+  const bool stiffness = config.dt_rule == TimeStepRule::stiffness;
+  m.dt = (stiffness ? config.max_dt_fraction : config.dt_fraction) * t_r;
+  plan.servo_time = servo_time_unit(stiffness ? 0.0 : m.dt, plan.r_min, config.material);
   // The preparation may take its own step: frictionless, it has no tangential or rolling springs,
   // whose stiff rotational modes bound the shearing step at high pressure (docs/reproducing-the-study.md).
-  plan.prepare_dt =
-      config.prepare.dt_fraction > 0.0 ? config.prepare.dt_fraction * rayleigh_time(plan.r_min, config.material) : m.dt;
+  plan.prepare_dt = (config.prepare.dt_fraction > 0.0 ? config.prepare.dt_fraction : config.dt_fraction) * t_r;
   plan.prepare_servo_time = servo_time_unit(plan.prepare_dt, plan.r_min, config.material);
 }
 
@@ -208,6 +212,10 @@ Model shear_model(const Protocol& plan, const TestSpec& test) {
   Model m = plan.base;
   const ShearConfig& h = plan.config.shear;
   ServoSettings& s = m.servo;
+  if (plan.config.dt_rule == TimeStepRule::stiffness) {
+    m.time_step = TimeStepSettings{TimeStepRule::stiffness, plan.config.dt_safety, plan.config.dt_interval, m.dt};
+    s.gain_time = plan.servo_time;
+  }
   if (test.path == ShearPath::strain) return m;  // rates set once on the cell; no servo scheduled
   s.enabled = true;
   // cell.shear = "free": the three shear stresses held at zero (every servo path but the rotation,

@@ -29,6 +29,7 @@ using M = const Measures&;
 constexpr SeriesColumn k_columns[] = {
     {"time", "s", 1, [](S s, M, double, double* o) { *o = s.clock.time; }},
     {"step", "-", 1, [](S s, M, double, double* o) { *o = static_cast<double>(s.clock.step); }},
+    {"dt", "s (the step in effect: fixed, or time.step = stiffness's)", 1, [](S, M m, double, double* o) { *o = m.dt; }},
     {"strain", "- (logarithmic, compression positive)", 3, [](S, M m, double, double* o) { three(m.strain, o); }},
     {"strain_engineering", "-", 3, [](S, M m, double, double* o) { three(m.strain_engineering, o); }},
     {"strain_rate", "1/s (compression positive)", 3, [](S, M m, double, double* o) { three(m.strain_rate, o); }},
@@ -112,7 +113,7 @@ void check_finite(const State& state, const Measures& m) {
     if (what)
       throw SimulationError("step " + std::to_string(state.clock.step) + ": particle id " + std::to_string(p.id[k]) +
                             ": " + what +
-                            " is not finite (the run went unstable: lower time.dt_fraction or the strain rate)");
+                            " is not finite (the run went unstable: lower time.dt_fraction or time.safety, or the strain rate)");
   }
   if (!std::isfinite(m.inv.p) || !state.cell.length.allFinite())
     throw SimulationError("step " + std::to_string(state.clock.step) + ": cell stress or lengths are not finite");
