@@ -160,6 +160,7 @@ ResultsFile ResultsFile::create(const std::filesystem::path& path, std::string_v
   root.set_value<std::int64_t>("schema_version", k_results_schema);
   root.set_string("software_version", version());
   root.set_string("software_arch", build_arch());  // SANDCELL_ARCH: same results for every value
+  root.set_string("software_compiler", compiler());
   root.set_string("config", config_text);
   for (const auto& [name, value] : attributes) root.set_string(name, value);
   impl->series = root.create_group("series");

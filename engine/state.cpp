@@ -1,6 +1,7 @@
 #include "engine/state.hpp"
 
 #include "engine/assert.hpp"
+#include "engine/fnv1a.hpp"
 
 #include <numbers>
 #include <string>
@@ -28,6 +29,22 @@ std::size_t add_sphere(State& state, const Model& model, ParticleId id, const Ve
   p.inv_inertia[k] = 1.0 / (0.4 * mass * radius * radius);
   p.material[k] = material;
   return k;
+}
+
+std::uint64_t particle_digest(const State& s) {
+  Fnv1a f;
+  f.array(s.particles.id);
+  f.array(s.particles.position);
+  f.array(s.particles.velocity);
+  f.array(s.particles.angular_velocity);
+  f.bytes(s.cell.length.data(), sizeof(double) * 3);
+  if (!s.cell.plain()) {
+    f.bytes(s.cell.tilt.data(), sizeof(double) * 3);
+    f.bytes(s.cell.flip.data(), sizeof(double) * 3);
+  }
+  f.bytes(&s.clock.step, sizeof s.clock.step);
+  f.bytes(&s.clock.time, sizeof s.clock.time);
+  return f.h;
 }
 
 }  // namespace sandcell

@@ -22,6 +22,13 @@ struct Clock {
   double dt = 0.0;         // s, the step in effect under an adaptive rule (Model::time_step), else 0
 };
 
+class State;
+/// FNV-1a (engine/fnv1a.hpp) over the particles' ids, positions, velocities and angular velocities
+/// in array order, the cell's lengths (and a shearing cell's tilts and flips) and the clock's step
+/// and time: equal digests mean bitwise equal particle states. The results files' state_digest
+/// column (`triaxial verify` compares it row by row).
+std::uint64_t particle_digest(const State& state);
+
 class State {
  public:
   Particles particles;

@@ -9,4 +9,14 @@ namespace sandcell {
 
 std::string_view version() { return SANDCELL_VERSION; }
 
+std::string_view compiler() {
+#if defined(__clang__)
+  return "clang " __clang_version__;
+#elif defined(__GNUC__)
+  return "gcc " __VERSION__;
+#else
+  return "unknown";
+#endif
+}
+
 }  // namespace sandcell

@@ -272,5 +272,8 @@ int run_campaign(const Plan& plan, const Options& options, const std::vector<cha
                  const std::vector<char>& run_test, std::ostream& out);
 /// `triaxial slurm CONFIG --out DIR ...`: the campaign as Slurm job arrays (slurm.hpp).
 int slurm_main(int argc, const char* const* argv, std::ostream& out, std::ostream& err);
+/// `triaxial verify RESULTS.h5 [--rows K..L] [--threads T] [--keep DIR]`: re-runs a shear test from
+/// its run record and compares the results bitwise (verify.cpp). 0 verified, 1 differs, 2 cannot.
+int verify_main(int argc, const char* const* argv, std::ostream& out, std::ostream& err);
 
 }  // namespace sandcell::triaxial

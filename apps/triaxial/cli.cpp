@@ -113,7 +113,9 @@ void add_run_options(CLI::App& app, CommandLine& cl) {
       "      (triaxial localization --help)\n"
       "Calibration of micro-parameters against macroscopic targets (surrogate, posterior, check run):\n"
       "  triaxial calibrate CONFIG --targets FILE --param KEY=LO:HI... [--budget N] [--out DIR] [--resume]   "
-      "(triaxial calibrate --help)");
+      "(triaxial calibrate --help)\n"
+      "Verify a published test: re-run it from its sample and compare its results file bitwise:\n"
+      "  triaxial verify RESULTS.h5 [--rows K..L] [--threads T] [--keep DIR]   (triaxial verify --help)");
   app.add_option("config", options.config_path, "TOML configuration (none: the embedded default)");
   app.add_option(
          "--threads", options.threads,
@@ -260,6 +262,8 @@ int triaxial_main(int argc, const char* const* argv, std::ostream& out, std::ost
   if (argc >= 2 && std::string(argv[1]) == "calibrate") return script_main("calibrate", argc - 1, argv + 1, err);
   // `triaxial slurm CONFIG --out DIR [--submit]`: the campaign as Slurm job arrays (slurm.hpp).
   if (argc >= 2 && std::string(argv[1]) == "slurm") return slurm_main(argc - 1, argv + 1, out, err);
+  // `triaxial verify RESULTS.h5 [--rows K..L] [--threads T]`: re-run a test, compare bitwise (verify.cpp).
+  if (argc >= 2 && std::string(argv[1]) == "verify") return verify_main(argc - 1, argv + 1, out, err);
   CommandLine cl;
   if (const std::optional<int> code = parse_command_line(argc, argv, cl, out, err)) return *code;
   Options& options = cl.options;

@@ -13,7 +13,9 @@
 #include <algorithm>
 #include <cmath>
 #include <numbers>
+#include <cstdio>
 #include <cstdlib>
+#include <map>
 #include <optional>
 
 namespace sandcell::triaxial {
@@ -247,13 +249,22 @@ void ShearRun::resume(const State& state, CheckpointExtra& extra) {
 // rates set; a new results file.
 State ShearRun::start_from_sample(const fs::path& sample) {
   State state = read_checkpoint(sample, nullptr);
+  char digest[17];
+  std::snprintf(digest, sizeof digest, "%016llx", static_cast<unsigned long long>(particle_digest(state)));
   start_test(plan_, test_, state);
-  results_.emplace(ResultsFile::create(path_, plan_.config.text,
-                                       {{"job", test_.name},
-                                        {"stage", "shear"},
-                                        {"path", path_name(test_.path)},
-                                        {"b", num(test_.b)},
-                                        {"p0", num(test_.p0)}}));
+  std::map<std::string, std::string> attrs = {{"job", test_.name},
+                                              {"stage", "shear"},
+                                              {"path", path_name(test_.path)},
+                                              {"b", num(test_.b)},
+                                              {"p0", num(test_.p0)},
+                                              {"sample_file", sample.filename().string()},
+                                              {"sample_digest", digest},
+                                              {"settings", resolved_settings(plan_, test_)}};
+  // The command line's one override of a result (the others choose threads, tasks and stops).
+  if (plan_.options.max_axial_strain > 0.0) attrs["max_axial_strain_override"] = num(plan_.options.max_axial_strain, "%.17g");
+  // The run record (docs/physics.md section 8): what `triaxial verify` needs to re-run the test from
+  // its sample and to say first when the build differs.
+  results_.emplace(ResultsFile::create(path_, plan_.config.text, attrs));
   return state;
 }
 

@@ -31,7 +31,8 @@ while True:
     if worst < prep_cfg["tolerance"] and m.unbalanced < prep_cfg["unbalanced"]:
         break
 sample = sc.finish_preparation(world.state())
-sc.write_checkpoint(f"{out}/sample-{sc.p0_tag(p0)}.h5", sample, {"doubles": {"p0": [p0], "e0": [m.void_ratio]}})
+sc.write_checkpoint(f"{out}/sample-{sc.p0_tag(p0)}.h5", sample,
+                    {"doubles": {"p0": [p0], "e0": [m.void_ratio], "Z": [m.z]}})  # what the app's test reads
 
 # Shear: the test's path from the prepared sample to max_axial_strain, watched.
 model = proto.shear_model(test.name)
@@ -39,7 +40,10 @@ world = sc.World(model, proto.start_test(test.name, sample), threads=2, initial_
 cyclic = proto.cyclic_path(model)  # a cyclic test ends with its path; None for the others
 watch = proto.path_watch(test.name)
 eps_max = proto.shear["max_axial_strain"]
-attributes = {"job": test.name, "stage": "shear", "path": test.path, "b": "%.6g" % test.b, "p0": "%.6g" % p0}
+attributes = {"job": test.name, "stage": "shear", "path": test.path, "b": "%.6g" % test.b, "p0": "%.6g" % p0,
+              # the run record (`triaxial verify`): the sample, its state digest, the derived settings
+              "sample_file": f"sample-{sc.p0_tag(p0)}.h5", "sample_digest": "%016x" % sc.particle_digest(sample),
+              "settings": proto.resolved_settings(test.name)}
 
 
 def row(results):

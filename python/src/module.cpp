@@ -647,6 +647,10 @@ PYBIND11_MODULE(_sandcell, m) {
       .def_readwrite("interval", &TimeStepSettings::interval)
       .def_readwrite("max_dt", &TimeStepSettings::max_dt);
   m.def(
+      "particle_digest", [](const State& s) { return particle_digest(s); }, py::arg("state"),
+      "FNV-1a of the particle state (ids, positions, velocities, spins, cell, clock): the results files' "
+      "state_digest and sample_digest");
+  m.def(
       "stable_step",
       [](const Model& model, const State& state) {
         Model finalized = model;

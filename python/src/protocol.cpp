@@ -127,6 +127,9 @@ void bind_protocol(py::module_& m) {
           "shear_model", [](const Protocol& p, const py::object& t) { return shear_model(p, test_of(p, t)); },
           py::arg("test"), "The model of a test (its index or name): path, targets, servo")
       .def(
+          "resolved_settings", [](const Protocol& p, const py::object& t) { return resolved_settings(p, test_of(p, t)); },
+          py::arg("test"), "The run record's settings text of a test (its index or name), as the app writes it")
+      .def(
           "axial_rate", [](const Protocol& p, const py::object& t) { return axial_rate(p, test_of(p, t).p0); },
           py::arg("test"), "The axial rate at p = p0, 1/s")
       .def(

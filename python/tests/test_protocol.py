@@ -66,10 +66,10 @@ def test_a_bad_config_is_a_value_error_naming_the_key():
 
 
 def test_the_series_schema_is_one_table():
-    """The 40 columns of the results files (the twin test compares them bitwise with the app's)."""
+    """The 41 columns of the results files (the twin test compares them bitwise with the app's)."""
     cols = sc.series_columns()
     names = [c[0] for c in cols]
-    assert len(cols) == 40 and len(set(names)) == 40
+    assert len(cols) == 41 and len(set(names)) == 41
     assert names[:2] == ["time", "step"] and names[-1] == "wall_time"
     assert dict((c[0], c[2]) for c in cols)["stress"] == 6
 

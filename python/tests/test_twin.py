@@ -13,6 +13,8 @@ import h5py
 import numpy as np
 import pytest
 
+import sandcell as sc
+
 HERE = os.path.dirname(os.path.abspath(__file__))
 EXAMPLE = os.path.join(HERE, "..", "examples", "triaxial_default.py")
 CASES = {"small.toml": "p-b0.50-p0_500kPa", "small-undrained.toml": "u-p0_500kPa", "small-cyclic.toml": "cyc-p0_500kPa"}
@@ -68,7 +70,7 @@ def test_shear_results_are_bitwise_the_apps(runs):
     a, b = datasets(app), datasets(py)
     assert sorted(a) == sorted(b)
     series = [k for k in a if k.startswith("series/")]
-    assert len(series) == 40 and a["series/step"].size > 10
+    assert len(series) == 41 and a["series/step"].size > 10
     for k in a:
         if k == "series/wall_time":
             continue  # the one value that is the clock on the wall, not the simulation
@@ -81,3 +83,15 @@ def test_shear_results_are_bitwise_the_apps(runs):
             assert np.array_equal(value, ab[group][key]), (group, key)
     for k in series:
         assert app[k].attrs["units"] == py[k].attrs["units"], k
+
+
+def test_the_apps_results_verify(runs):
+    # sandcell.verify re-runs the app's test from its run record: bitwise, on another thread count.
+    verified, message = sc.verify(os.path.join(runs[0], runs[2] + ".h5"), threads=1,
+                                  triaxial=os.environ["SANDCELL_TRIAXIAL"])
+    assert verified, message
+    assert message.startswith("verified: rows 0..")
+    # The Python twin's file holds the same run record: it verifies too (its sample beside it).
+    verified, message = sc.verify(os.path.join(runs[1], runs[2] + ".h5"), rows=(0, 3),
+                                  triaxial=os.environ["SANDCELL_TRIAXIAL"])
+    assert verified, message

@@ -3,6 +3,7 @@
 // thread counts) is bitwise identical to an uninterrupted one; the embedded default runs end to end
 // and its results file holds the documented datasets.
 #include "engine/checkpoint.hpp"
+#include "engine/hdf5.hpp"
 #include "config.hpp"
 #include "lock.hpp"
 #include "run.hpp"
@@ -351,6 +352,58 @@ TEST_CASE("triaxial: the embedded default runs end to end and writes the documen
       ++checked;
     }
   CHECK(checked >= 3);
+
+  // triaxial verify: the file re-runs bitwise from its run record (its sample, its config text and
+  // the --max-axial-strain it was run with), on another thread count.
+  const Result v = run({"verify", results.string(), "--threads", "2"});
+  INFO(v.out, v.err);
+  CHECK(v.code == 0);
+  CHECK(v.out.find("verified: rows 0..") != std::string::npos);
+  // A copy with one snapshot value moved by one ulp: the snapshot named, exit 1. Rows up to that
+  // snapshot's only (the re-run stops there).
+  const fs::path copy = fresh_dir("default_tampered");
+  for (const char* f : {"p-b0.50-p0_500kPa.h5", "sample-p0_500kPa.h5"}) fs::copy_file(dir / f, copy / f);
+  const fs::path tampered = copy / "p-b0.50-p0_500kPa.h5";
+  std::string snapshot;
+  std::size_t snapshot_row = 0;
+  {
+    const std::vector<double> steps = dataset(tampered, "/series/step");
+    // The second snapshot (the first is the initial state): its step's row.
+    const std::vector<std::string> names =
+        h5::File::open(tampered, h5::File::Mode::read).root().open_group("snapshots").children();
+    const hid_t file = H5Fopen(tampered.c_str(), H5F_ACC_RDWR, H5P_DEFAULT);
+    REQUIRE(file >= 0);
+    REQUIRE(names.size() >= 2);
+    snapshot = names[1];
+    const double step = std::stod(snapshot);
+    while (snapshot_row < steps.size() && steps[snapshot_row] < step) ++snapshot_row;
+    REQUIRE(snapshot_row < steps.size());
+    const hid_t set = H5Dopen2(file, ("/snapshots/" + snapshot + "/position").c_str(), H5P_DEFAULT);
+    const hid_t space = H5Dget_space(set);
+    std::vector<double> x(static_cast<std::size_t>(H5Sget_simple_extent_npoints(space)));
+    H5Sclose(space);
+    H5Dread(set, H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, x.data());
+    x[7] = std::nextafter(x[7], 1.0);
+    H5Dwrite(set, H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, x.data());
+    H5Dclose(set);
+    H5Fclose(file);
+  }
+  const Result t = run({"verify", tampered.string(), "--rows", "0.." + std::to_string(snapshot_row)});
+  INFO(t.out, t.err);
+  CHECK(t.code == 1);
+  CHECK(t.out.find("differs: the snapshot at step " + std::to_string(std::stoull(snapshot)) + ": position") !=
+        std::string::npos);
+  // A config key edited in the file (the material's friction): the first row after the start differs.
+  {
+    h5::File file = h5::File::open(tampered, h5::File::Mode::read_write);
+    std::string text = file.root().get_string("config");
+    file.root().set_string("config", text.replace(text.find("friction = 0.5"), 14, "friction = 0.45"));
+  }
+  const Result c = run({"verify", tampered.string(), "--rows", "0..3"});
+  INFO(c.out, c.err);
+  CHECK(c.code == 1);
+  CHECK(c.out.find("differs: row 1 ") != std::string::npos);
+  fs::remove_all(copy);
   fs::remove_all(dir);
 }
 

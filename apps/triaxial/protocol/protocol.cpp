@@ -359,4 +359,32 @@ const CyclicPath* cyclic_path(const Model& model) {
   return model.servo.path == StressPath::custom ? model.servo.custom.target<CyclicPath>() : nullptr;
 }
 
+// Every value the run derives from its config, one `key = value` line each (the run record).
+std::string resolved_settings(const Protocol& plan, const TestSpec& test) {
+  const Model m = shear_model(plan, test);
+  const ServoSettings& s = m.servo;
+  const TimeStepSettings& t = m.time_step;
+  std::string out;
+  const auto line = [&](const std::string& key, const std::string& value) { out += key + " = " + value + "\n"; };
+  line("dt", num(m.dt, "%.17g"));
+  line("time_step", t.rule == TimeStepRule::stiffness ? "stiffness" : "fixed");
+  if (t.rule == TimeStepRule::stiffness) {
+    line("time_step.safety", num(t.safety, "%.17g"));
+    line("time_step.interval", std::to_string(t.interval));
+    line("time_step.max_dt", num(t.max_dt, "%.17g"));
+  }
+  line("contact.skin", num(m.contact.skin, "%.17g"));
+  line("servo.gain", num(s.gain, "%.17g"));
+  line("servo.integral_time", num(s.integral_time, "%.17g"));
+  line("servo.integral_strain", num(s.integral_strain, "%.17g"));
+  line("servo.gain_time", num(s.gain_time, "%.17g"));
+  line("servo.max_rate", num(s.max_rate, "%.17g"));
+  line("servo.interval", std::to_string(s.interval));
+  line("servo.inertial_number", num(s.inertial_number, "%.17g"));
+  line("servo.d50", num(s.d50, "%.17g"));
+  line("servo_time", num(plan.servo_time, "%.17g"));
+  line("sample.seed", std::to_string(plan.config.sample.generation.seed));
+  return out;
+}
+
 }  // namespace sandcell::triaxial

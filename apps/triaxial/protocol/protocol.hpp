@@ -46,6 +46,10 @@ void validate_servos(const Protocol& protocol);
 /// The servo gain derived when the config leaves it 0, 1/s: alpha (p/E*)^(2/3) / t_s,
 /// E* = E / (2 (1 - nu^2)) (docs/physics.md section 6).
 double derived_gain(double alpha, double p, const Material& material, double servo_time);
+/// Every value a test's shear stage derives from its config (dt, the time step's rule, skin, the
+/// servo's gain, integral time and units, the seed), one `key = value` line each: the run record of
+/// its results file (attribute `settings`).
+std::string resolved_settings(const Protocol& plan, const TestSpec& test);
 
 /// The two stages whose servo the protocol derives.
 enum class Stage { prepare, shear };

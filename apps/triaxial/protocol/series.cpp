@@ -30,6 +30,12 @@ constexpr SeriesColumn k_columns[] = {
     {"time", "s", 1, [](S s, M, double, double* o) { *o = s.clock.time; }},
     {"step", "-", 1, [](S s, M, double, double* o) { *o = static_cast<double>(s.clock.step); }},
     {"dt", "s (the step in effect: fixed, or time.step = stiffness's)", 1, [](S, M m, double, double* o) { *o = m.dt; }},
+    {"state_digest", "- (FNV-1a of the particle state, particle_digest: high and low 32 bits, exact)", 2,
+     [](S s, M, double, double* o) {
+       const std::uint64_t d = particle_digest(s);
+       o[0] = static_cast<double>(d >> 32);
+       o[1] = static_cast<double>(d & 0xffffffffu);
+     }},
     {"strain", "- (logarithmic, compression positive)", 3, [](S, M m, double, double* o) { three(m.strain, o); }},
     {"strain_engineering", "-", 3, [](S, M m, double, double* o) { three(m.strain_engineering, o); }},
     {"strain_rate", "1/s (compression positive)", 3, [](S, M m, double, double* o) { three(m.strain_rate, o); }},
