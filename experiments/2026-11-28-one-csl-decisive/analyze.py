@@ -25,6 +25,9 @@ Criteria, fixed before the data:
 - "offset" when |D| - 2 SE > 0.005 (a difference beyond the seeds' scatter and larger than the
   critical-state test's own e tolerance); "one CSL" when |D| + 2 SE < 0.010 (the whole interval
   inside half the study's CSL drop over 0.5-16 MPa, 0.026); otherwise "not identifiable".
+- sensitivity (reported apart, never the verdict): the same offsets over every test that held its path to
+  eps_q = 0.6, steady or not (offsets.csv entry held_path; verdicts.json sensitivity_held_path_only). Added after
+  the three seeds had run, when the steady criterion left most groups with one seed.
 - A = F'n : s'n, the contraction of the unit deviatoric fabric (15/2 (phi - I/3), normalized) with
   the unit deviatoric stress: 1 when the fabric is aligned with the loading, as anisotropic critical
   state theory (Li & Dafalias 2012) requires at critical state.
@@ -161,11 +164,14 @@ def main(argv=None):
         w.writeheader()
         for r in rows:
             w.writerow({k: (f"{v:.6g}" if isinstance(v, float) else v) for k, v in r.items()})
-    offsets, verdicts = [], {}
-    for cell in CELLS:
+    offsets, verdicts, sensitivity = [], {}, {}
+    # The entry rule fixed before the data (held its path, steady: the verdicts), and as a sensitivity check
+    # (reported apart, never the verdict) every test that held its path to eps_q = 0.6, steady or not.
+    entries = (("steady", lambda r: r["status"].startswith("done") and r["critical"]),
+               ("held_path", lambda r: r["status"].startswith("done") and r["eps_q_end"] >= 0.599))
+    for (entry, admit), cell in ((e, c) for e in entries for c in CELLS):
         for p0 in sorted({r["p0_MPa"] for r in rows}):
-            good = [r for r in rows if r["cell"] == cell and r["p0_MPa"] == p0 and r["status"].startswith("done")
-                    and r["critical"]]
+            good = [r for r in rows if r["cell"] == cell and r["p0_MPa"] == p0 and admit(r)]
             ref = [r["e"] for r in good if r["b"] == 0.0]
             m0, se0, n0 = mean_se(ref)
             for b in (0.5, 1.0):
@@ -175,20 +181,20 @@ def main(argv=None):
                 se = math.sqrt(seb ** 2 + se0 ** 2) if nb > 1 and n0 > 1 else math.nan
                 v = verdict(d, se)
                 a_b = [r["A"] for r in good if r["b"] == b]
-                offsets.append({"cell": cell, "p0_MPa": p0, "b": b, "n_b": nb, "n_0": n0, "e_c_b": mb,
-                                "e_c_0": m0, "offset": d, "se": se, "verdict": v,
+                offsets.append({"entry": entry, "cell": cell, "p0_MPa": p0, "b": b, "n_b": nb, "n_0": n0,
+                                "e_c_b": mb, "e_c_0": m0, "offset": d, "se": se, "verdict": v,
                                 "A_b": float(np.mean(a_b)) if a_b else math.nan})
-                verdicts[f"{cell} p0={p0:g} MPa b={b:g}"] = v
+                (verdicts if entry == "steady" else sensitivity)[f"{cell} p0={p0:g} MPa b={b:g}"] = v
     with open(os.path.join(a.out, "offsets.csv"), "w", newline="") as f:
         w = csv.DictWriter(f, fieldnames=list(offsets[0].keys()) if offsets else ["cell"])
         w.writeheader()
         for r in offsets:
             w.writerow({k: (f"{v:.6g}" if isinstance(v, float) else v) for k, v in r.items()})
     with open(os.path.join(a.out, "verdicts.json"), "w") as f:
-        json.dump(verdicts, f, indent=1, sort_keys=True)
+        json.dump(dict(verdicts, sensitivity_held_path_only=sensitivity), f, indent=1, sort_keys=True)
     for r in offsets:
-        print(f"{r['cell']:5s} p0 {r['p0_MPa']:g} MPa b {r['b']:g}: e_c {r['e_c_b']:.4f} vs {r['e_c_0']:.4f} "
-              f"(n {r['n_b']}/{r['n_0']}): offset {r['offset']:+.4f} +- {r['se']:.4f}: {r['verdict']}")
+        print(f"{r['entry']:9s} {r['cell']:5s} p0 {r['p0_MPa']:g} MPa b {r['b']:g}: e_c {r['e_c_b']:.4f} vs "
+              f"{r['e_c_0']:.4f} (n {r['n_b']}/{r['n_0']}): offset {r['offset']:+.4f} +- {r['se']:.4f}: {r['verdict']}")
     return 0
 
 
