@@ -4,6 +4,7 @@
 
 #include "protocol/series.hpp"
 
+#include "engine/fnv1a.hpp"
 #include "engine/generate.hpp"
 #include "engine/packing.hpp"
 #include "engine/results.hpp"
@@ -12,7 +13,10 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <fstream>
+#include <iterator>
+#include <map>
 #include <optional>
 
 namespace sandcell::triaxial {
@@ -127,6 +131,14 @@ State PrepareRun::resume() {
   return state;
 }
 
+namespace {
+std::string hex16(std::uint64_t v) {
+  char s[17];
+  std::snprintf(s, sizeof s, "%016llx", static_cast<unsigned long long>(v));
+  return s;
+}
+}  // namespace
+
 // prepare.chain: the laboratory sequence, the sample prepared at the next lower p0 compressed on to p0.
 State PrepareRun::start_from_sample(const fs::path& sample) {
   State state = read_checkpoint(sample, nullptr);
@@ -134,7 +146,10 @@ State PrepareRun::start_from_sample(const fs::path& sample) {
   state.cell.rate.setZero();
   state.cell.servo_integral.setZero();  // servo state resets between stages
   results_.emplace(ResultsFile::create(series_, plan_.config.text,
-                                       {{"job", name_}, {"stage", "prepare"}, {"from", "sample-" + p0_tag(from_)}}));
+                                       {{"job", name_},
+                                        {"stage", "prepare"},
+                                        {"from", "sample-" + p0_tag(from_)},
+                                        {"initial_digest", hex16(particle_digest(state))}}));
   return state;
 }
 
@@ -145,7 +160,18 @@ State PrepareRun::start_from_cloud(const Model& model) {
     log_.line(name_ + ": placing " + std::to_string(plan_.config.sample.generation.count) + " spheres at random");
   if (!plan_.from_file) packing = generate_packing(plan_.config.sample.generation);
   State state = make_state(model, packing);
-  results_.emplace(ResultsFile::create(series_, plan_.config.text, {{"job", name_}, {"stage", "prepare"}}));
+  // The run record of a preparation: the input (a packing file's bytes, or the generated cloud) by digest.
+  std::map<std::string, std::string> attrs = {{"job", name_}, {"stage", "prepare"},
+                                              {"initial_digest", hex16(particle_digest(state))}};
+  if (plan_.from_file) {
+    attrs["packing_file"] = plan_.config.sample.packing_file;
+    std::ifstream in(plan_.config.sample.packing_file, std::ios::binary);
+    const std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    Fnv1a f;
+    f.bytes(bytes.data(), bytes.size());
+    attrs["packing_digest"] = hex16(f.h);
+  }
+  results_.emplace(ResultsFile::create(series_, plan_.config.text, attrs));
   return state;
 }
 
