@@ -27,7 +27,7 @@ def read(name):
 
 def main():
     out = []
-    for name in ("scaling.jsonl", "long.jsonl"):
+    for name in ("scaling.jsonl", "long.jsonl", "long2.jsonl"):
         rows = read(name)
         for n in sorted({r["particles"] for r in rows}):
             sel = [r for r in rows if r["particles"] == n]
@@ -45,7 +45,7 @@ def main():
         w.writeheader()
         for r in out:
             w.writerow({k: (f"{v:.4g}" if isinstance(v, float) else v) for k, v in r.items()})
-    for file in ("scaling.jsonl", "long.jsonl"):
+    for file in ("scaling.jsonl", "long.jsonl", "long2.jsonl"):
         for n in sorted({r["particles"] for r in out if r["file"] == file}):
             for t in sorted({r["threads"] for r in out if r["file"] == file and r["particles"] == n}):
                 s = [r for r in out if r["file"] == file and r["particles"] == n and r["threads"] == t]
@@ -55,5 +55,25 @@ def main():
                       f"({len(s)} runs)")
 
 
+def per_round():
+    """1,280,000 spheres, 16 threads against 1 thread of the same round (long.jsonl, long2.jsonl): p10 / median / p90
+    of the ratio / 16, by wall and in steady state."""
+    rows = read("long.jsonl") + read("long2.jsonl")
+    wall, steady = [], []
+    for r in sorted({x["round"] for x in rows}):
+        one = [x for x in rows if x["round"] == r and x["threads"] == 1]
+        many = [x for x in rows if x["round"] == r and x["threads"] == 16]
+        if one and many:
+            a, b = one[0], many[0]
+            wall.append(b["particle_steps_per_s"] / a["particle_steps_per_s"] / 16)
+            steady.append(sum(a["system_s"][k] for k in STEADY) / a["steps"] /
+                          (sum(b["system_s"][k] for k in STEADY) / b["steps"]) / 16)
+    for label, v in (("by wall", wall), ("steady", steady)):
+        p10, med, p90 = np.percentile(v, [10, 50, 90])
+        print(f"1,280,000 spheres, 16 threads / 1 thread of the same round / 16, {label}: p10 {p10:.2f}, median "
+              f"{med:.2f}, p90 {p90:.2f} ({len(v)} rounds)")
+
+
 if __name__ == "__main__":
     main()
+    per_round()
