@@ -333,6 +333,8 @@ struct Options {
   double deform = 0.0, vchar = 0.0, shear = 0.0;
   bool json = false, serial = false, costs = false, scaling = false, probe = false, compat = false;
   std::string partition = "adaptive", rolling = "epsd2", tangential = "history", normal;
+  std::string time_step = "fixed";  // --time-step: fixed (0.2 t_R) or stiffness (Model::time_step)
+  double safety = 0.8, interval = 100;
   std::vector<std::string> params;  // --param NAME=VALUE: a normal law's parameter (the law registry's)
 };
 
@@ -415,6 +417,12 @@ std::optional<int> parse_command_line(int argc, char** argv, Options& o, Model& 
   std::string param_names;
   for (const NormalLawInfo& law : normal_laws())
     for (const LawParameter& q : law.parameters) param_names += (param_names.empty() ? "" : ", ") + std::string(q.name);
+  app.add_option("--time-step", o.time_step, "fixed (0.2 Rayleigh times, the default) or stiffness (from the contacts)")
+      ->check(CLI::IsMember({"fixed", "stiffness"}));
+  app.add_option("--safety", o.safety, "the stiffness step's safety factor (default 0.8; with --time-step stiffness)")
+      ->check(number_in(1e-3, 1.4142135623730951));
+  app.add_option("--interval", o.interval, "steps between updates of the stiffness step (default 100)")
+      ->check(number_in(1, 1e6));
   app.add_option("--param", o.params, "a normal law's parameter NAME=VALUE (" + param_names + "), repeatable")
       ->type_name("NAME=VALUE")
       ->check(CLI::Validator(
@@ -447,7 +455,16 @@ std::optional<int> parse_command_line(int argc, char** argv, Options& o, Model& 
     std::fprintf(stderr, "dem-bench: %s (see --help)\n", e.what());
     return 2;
   }
-  // What is not given keeps the Model's default.
+  // What is not given keeps the Model's default. A setting that would have no effect is an error.
+  for (const auto& [flag, value] : {std::pair{"--safety", o.safety}, std::pair{"--interval", o.interval}})
+    if (o.time_step != "stiffness" && app.count(flag) > 0) {
+      std::fprintf(stderr, "dem-bench: %s %g: acts only with --time-step stiffness\n", flag, value);
+      return 2;
+    }
+  if (o.interval != std::floor(o.interval)) {
+    std::fprintf(stderr, "dem-bench: --interval %g: must be a whole number of steps\n", o.interval);
+    return 2;
+  }
   if (o.compat) model.contact.liggghts_compat = true;
   // The laws by their registered names (CLI11 let only those through).
   if (app.count("--rolling") > 0) model.contact.rolling = rolling_law(o.rolling).value();
@@ -479,6 +496,8 @@ static int bench_main(int argc, char** argv) {
   model.materials.push_back(Material{2650.0, 70e9, 0.3, 0.5, 0.5, 0.1});
   model.contact.skin = 0.3e-3;  // m
   model.contact.sort_interval = static_cast<int>(o.sort_interval);
+  if (o.time_step == "stiffness")  // bounded by one Rayleigh time (5 x the fixed 0.2 t_R)
+    model.time_step = TimeStepSettings{TimeStepRule::stiffness, o.safety, static_cast<int>(o.interval), 5.0 * model.dt};
 
   Packing packing;
   try {
@@ -532,13 +551,16 @@ static int bench_main(int argc, char** argv) {
         " \"contacts_per_particle_start\": %.6f, \"contacts_per_particle\": %.6f, \"rebuilds\": %llu,\n"
         " \"peak_mib\": %.1f, \"mean_stress_start_pa\": %.6e, \"mean_stress_pa\": %.6e,\n"
         " \"stress_pa\": [%.6e, %.6e, %.6e, %.6e, %.6e, %.6e], \"lz\": %.9f, \"digest\": \"%016llx\",\n"
+        " \"time_step\": \"%s\", \"dt_s\": %.9e, \"simulated_s\": %.9e,\n"
         " \"partition\": \"%s\", \"partition_steps\": {\"owner\": %llu, \"dynamic\": %llu, \"switches\": %llu, "
         "\"trials\": %llu},\n"
         " \"system_s\": {",
         scene.c_str(), std::string(build_arch()).c_str(), n, steps, world.executor().threads(),
         serial ? "serial" : "tbb", deform, drive.shear, model.contact.liggghts_compat ? "true" : "false", wall, rate, 2.0 * c0 / n,
         2.0 * c1 / n, static_cast<unsigned long long>(builds), peak_mib, s0.trace() / 3, s1.trace() / 3, s1(0, 0),
-        s1(1, 1), s1(2, 2), s1(0, 1), s1(0, 2), s1(1, 2), world.state().cell.length[2], digest, partition_used.c_str(),
+        s1(1, 1), s1(2, 2), s1(0, 1), s1(0, 2), s1(1, 2), world.state().cell.length[2], digest,
+        model.time_step.rule == TimeStepRule::stiffness ? "stiffness" : "fixed", world.model().dt,
+        world.state().clock.time, partition_used.c_str(),
         static_cast<unsigned long long>(ps.owner), static_cast<unsigned long long>(ps.dynamic),
         static_cast<unsigned long long>(ps.switches), static_cast<unsigned long long>(ps.trials));
     for (std::size_t k = 0; k < graph.size(); ++k)
@@ -561,6 +583,9 @@ static int bench_main(int argc, char** argv) {
               std::string(build_arch()).c_str());
   std::printf("wall (step loop) %.3f s\n", wall);
   std::printf("throughput       %.3f M particle-steps/s\n", rate / 1e6);
+  std::printf("time step        %s, dt %.4g s at the end, %.4g s simulated (%.4g s of simulated time per wall second)\n",
+              model.time_step.rule == TimeStepRule::stiffness ? "stiffness" : "fixed 0.2 t_R", world.model().dt,
+              world.state().clock.time, world.state().clock.time / wall);
   std::printf("contacts/particle %.4f at start, %.4f at end\n", 2.0 * c0 / n, 2.0 * c1 / n);
   std::printf("rebuilds         %llu (%zu candidate pairs in the list)\n", static_cast<unsigned long long>(builds),
               world.state().contacts.size());
