@@ -286,7 +286,9 @@ int triaxial_main(int argc, const char* const* argv, std::ostream& out, std::ost
   }
   if (cl.check_only) {
     out << "triaxial: " << plan.config.source << ": valid: " << plan.config.tests.size() << " test(s), "
-        << plan.p0.size() << " sample(s), dt = " << num(plan.base.dt) << " s, results ~"
+        << plan.p0.size() << " sample(s), "
+        << (plan.config.dt_rule == TimeStepRule::stiffness ? "dt from the contacts, at most " : "dt = ")
+        << num(plan.base.dt) << " s, results ~"
         << num(plan.output_bytes / double(1 << 30), "%.3g") << " GiB (estimated)\n";
     if (!plan.output_note.empty()) out << "warning: output: " << plan.output_note << '\n';
     return 0;
