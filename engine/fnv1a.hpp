@@ -3,6 +3,8 @@
 // Not cryptographic; it detects accidental changes (a flipped bit, a different result).
 #include <cstddef>
 #include <cstdint>
+#include <cstdio>
+#include <string>
 #include <vector>
 
 namespace sandcell {
@@ -19,5 +21,12 @@ struct Fnv1a {
     if (!v.empty()) bytes(v.data(), v.size() * sizeof(T));
   }
 };
+
+/// A digest as 16 lowercase hex digits (how results files record them).
+inline std::string hex_digest(std::uint64_t h) {
+  char s[17];
+  std::snprintf(s, sizeof s, "%016llx", static_cast<unsigned long long>(h));
+  return s;
+}
 
 }  // namespace sandcell

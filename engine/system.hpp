@@ -16,10 +16,11 @@
 //   static constexpr std::string_view deferred_to = "..."; with flush: the system may leave its work
 //                                                      to that system's next run (see World::step_until)
 //   static double stable_step(const Model&, const State&);
+//   static constexpr ComponentMask stable_step_reads = ...;
 //                                                      the largest step its physics allows now, before
 //                                                      the safety factor (s; +inf: no bound), for an
 //                                                      adaptive time step (Model::time_step); serial,
-//                                                      from the state only
+//                                                      from the state only, under its own read set
 // The setup, restore and flush hooks run under the system's access sets like `run`.
 // A system type provides `name`, `reads`, `writes` (initializer-list masks) and `run`;
 // make_system() turns it into the type-erased record the step graph schedules.
@@ -55,6 +56,7 @@ struct SystemSpec {
   SystemRun flush;
   std::string deferred_to;  // with flush: the system whose next run absorbs this one's pending work
   std::function<double(const Model&, const State&)> stable_step;  // s, the step its physics allows (+inf: none)
+  ComponentMask stable_step_reads = 0;                            // what stable_step reads (enforced)
 };
 
 template <class S>
@@ -64,7 +66,10 @@ SystemSpec make_system() {
   if constexpr (requires { &S::prepare; }) spec.prepare = &S::prepare;
   if constexpr (requires { &S::setup; }) spec.setup = &S::setup;
   if constexpr (requires { &S::restore; }) spec.restore = &S::restore;
-  if constexpr (requires { &S::stable_step; }) spec.stable_step = &S::stable_step;
+  if constexpr (requires { &S::stable_step; }) {
+    spec.stable_step = &S::stable_step;
+    spec.stable_step_reads = S::stable_step_reads;
+  }
   if constexpr (requires { &S::flush; }) {
     spec.flush = &S::flush;
     spec.deferred_to = std::string(S::deferred_to);

@@ -218,8 +218,13 @@ void World::update_time_step() {
   flush();
   scratch_->batching = batching_;
   double bound = std::numeric_limits<double>::infinity();
-  for (std::size_t k = 0; k < graph_.size(); ++k)
-    if (graph_.system(k).stable_step) bound = std::min(bound, graph_.system(k).stable_step(model_, state_));
+  for (std::size_t k = 0; k < graph_.size(); ++k) {
+    const SystemSpec& s = graph_.system(k);
+    if (!s.stable_step) continue;
+    const AccessSets sets{s.name, s.stable_step_reads, 0};
+    AccessScope scope(sets);
+    bound = std::min(bound, s.stable_step(model_, state_));
+  }
   const double dt = std::min(model_.time_step.max_dt, model_.time_step.safety * bound);
   if (!(dt > 0.0) || !std::isfinite(dt))
     throw SimulationError("step " + std::to_string(state_.clock.step) + ": the stiffness time step is " +

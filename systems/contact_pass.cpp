@@ -898,24 +898,31 @@ StableStepBound contact_stable_step(const Model& model, const State& state) {
   StableStepBound out;
   out.step = std::numeric_limits<double>::infinity();
   if (model.pairs.empty()) return out;  // a model World has not finalized: no material table
-  const Particles& p = state.particles;
-  const Contacts& c = state.contacts;
-  const std::size_t n = p.size();
+  // Through the checked accessors: ContactPass::stable_step_reads, enforced when World calls it.
+  const ContactPairs& pairs = state.read<Component::contact_pairs>();
+  const auto& id = state.read<Component::particle_id>();
+  const auto& position = state.read<Component::particle_position>();
+  const auto& radius = state.read<Component::particle_radius>();
+  const auto& mass = state.read<Component::particle_mass>();
+  const auto& inv_inertia = state.read<Component::particle_inv_inertia>();
+  const auto& material = state.read<Component::particle_material>();
+  const Cell& cell = state.read<Component::cell>();
+  const std::size_t n = position.size();
   std::vector<double> k(6 * n, 0.0);  // per particle: K_x, K_y, K_z, K_rot,x, K_rot,y, K_rot,z
   const bool rolling = model.contact.rolling == RollingModel::epsd2 || model.contact.rolling == RollingModel::epsd;
   with_laws(model.contact, [&](auto normal, auto, auto) {
     using N = typename decltype(normal)::type;
-    for (std::size_t q = 0; q < c.pairs.size(); ++q) {
-      const std::uint32_t i = c.pairs.i[q], j = c.pairs.j[q];
-      const Vec3 r = p.position[i] - p.position[j] - image_offset(c.pairs.image[q], state.cell);
-      const double reach = p.radius[i] + p.radius[j];
+    for (std::size_t q = 0; q < pairs.size(); ++q) {
+      const std::uint32_t i = pairs.i[q], j = pairs.j[q];
+      const Vec3 r = position[i] - position[j] - image_offset(pairs.image[q], cell);
+      const double reach = radius[i] + radius[j];
       const double d2 = r.squaredNorm();
       if (!(d2 < reach * reach)) continue;
       const double d = std::sqrt(d2);
       const Vec3 nrm = r / d;
-      const double r_star = p.radius[i] * p.radius[j] / reach;
-      const double m_star = p.mass[i] * p.mass[j] / (p.mass[i] + p.mass[j]);
-      const PairMaterial& mat = model.pair(p.material[i], p.material[j]);
+      const double r_star = radius[i] * radius[j] / reach;
+      const double m_star = mass[i] * mass[j] / (mass[i] + mass[j]);
+      const PairMaterial& mat = model.pair(material[i], material[j]);
       const AtRest a = N::at_rest(mat, model.contact, r_star, m_star, reach - d);
       const double k_t = mat.friction > 0.0 ? a.k_t : 0.0;
       double k_r = 0.0;
@@ -928,8 +935,8 @@ StableStepBound contact_stable_step(const Model& model, const State& state) {
         const double trans = a.k_tangent * n2 + k_t * (1.0 - n2);
         k[6 * i + ax] += trans;
         k[6 * j + ax] += trans;
-        k[6 * i + 3 + ax] += (k_t * p.radius[i] * p.radius[i] + k_r) * (1.0 - n2);
-        k[6 * j + 3 + ax] += (k_t * p.radius[j] * p.radius[j] + k_r) * (1.0 - n2);
+        k[6 * i + 3 + ax] += (k_t * radius[i] * radius[i] + k_r) * (1.0 - n2);
+        k[6 * j + 3 + ax] += (k_t * radius[j] * radius[j] + k_r) * (1.0 - n2);
       }
     }
   });
@@ -937,9 +944,9 @@ StableStepBound contact_stable_step(const Model& model, const State& state) {
     for (int m = 0; m < 6; ++m) {
       const double stiff = k[6 * i + m];
       if (!(stiff > 0.0)) continue;
-      const double inertia = m < 3 ? p.mass[i] : 1.0 / p.inv_inertia[i];
+      const double inertia = m < 3 ? mass[i] : 1.0 / inv_inertia[i];
       const double step = std::sqrt(inertia / stiff);
-      if (step < out.step) out = StableStepBound{step, p.id[i], m >= 3, stiff};
+      if (step < out.step) out = StableStepBound{step, id[i], m >= 3, stiff};
     }
   return out;
 }

@@ -43,8 +43,12 @@ struct ContactPass {
   static void prepare(const Model& model, State& state);
   /// The forces of the initial configuration, histories frozen.
   static void setup(const Model& model, State& state, Scratch& scratch, Executor& exec);
-  /// The step the contacts allow now (contact_stable_step), for an adaptive time step.
+  /// The step the contacts allow now (contact_stable_step), for an adaptive time step, and what it reads.
   static double stable_step(const Model& model, const State& state);
+  static constexpr ComponentMask stable_step_reads =
+      mask_of({Component::contact_pairs, Component::particle_id, Component::particle_position,
+               Component::particle_radius, Component::particle_mass, Component::particle_inv_inertia,
+               Component::particle_material, Component::cell});
 };
 
 /// Contact pass private buffers: last step's regime of each pair and the order in which the pass

@@ -118,8 +118,6 @@ Vec3 path_targets(const ServoSettings& servo, double s1) {
 }
 
 namespace {
-// The PI law of one stress-controlled axis on its normalized error, capped at +-cap, with integral
-// time t_i; `integral` null or t_i = 0: a P law.
 // The gain at this update: servo.gain, or at a step above gain_time (an adaptive time step)
 // gain x gain_time / dt, so the loop gain per step g dt stays at most g gain_time. `interval` is
 // dt x servo.interval. With gain_time = 0, or dt <= gain_time, exactly servo.gain.
@@ -128,6 +126,8 @@ double step_gain(const ServoSettings& servo, double interval) {
   return servo.gain_time > 0.0 && interval > limit ? servo.gain * (limit / interval) : servo.gain;
 }
 
+// The PI law of one stress-controlled axis on its normalized error, capped at +-cap, with integral
+// time t_i; `integral` null or t_i = 0: a P law.
 double pi_rate(const ServoSettings& servo, double error, double* integral, double interval, double cap, double t_i) {
   const double gain = step_gain(servo, interval);
   if (integral == nullptr || !(t_i > 0.0)) return std::clamp(gain * error, -cap, cap);

@@ -131,14 +131,6 @@ State PrepareRun::resume() {
   return state;
 }
 
-namespace {
-std::string hex16(std::uint64_t v) {
-  char s[17];
-  std::snprintf(s, sizeof s, "%016llx", static_cast<unsigned long long>(v));
-  return s;
-}
-}  // namespace
-
 // prepare.chain: the laboratory sequence, the sample prepared at the next lower p0 compressed on to p0.
 State PrepareRun::start_from_sample(const fs::path& sample) {
   State state = read_checkpoint(sample, nullptr);
@@ -149,7 +141,7 @@ State PrepareRun::start_from_sample(const fs::path& sample) {
                                        {{"job", name_},
                                         {"stage", "prepare"},
                                         {"from", "sample-" + p0_tag(from_)},
-                                        {"initial_digest", hex16(particle_digest(state))}}));
+                                        {"initial_digest", hex_digest(particle_digest(state))}}));
   return state;
 }
 
@@ -162,14 +154,14 @@ State PrepareRun::start_from_cloud(const Model& model) {
   State state = make_state(model, packing);
   // The run record of a preparation: the input (a packing file's bytes, or the generated cloud) by digest.
   std::map<std::string, std::string> attrs = {{"job", name_}, {"stage", "prepare"},
-                                              {"initial_digest", hex16(particle_digest(state))}};
+                                              {"initial_digest", hex_digest(particle_digest(state))}};
   if (plan_.from_file) {
     attrs["packing_file"] = plan_.config.sample.packing_file;
     std::ifstream in(plan_.config.sample.packing_file, std::ios::binary);
     const std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
     Fnv1a f;
     f.bytes(bytes.data(), bytes.size());
-    attrs["packing_digest"] = hex16(f.h);
+    attrs["packing_digest"] = hex_digest(f.h);
   }
   results_.emplace(ResultsFile::create(series_, plan_.config.text, attrs));
   return state;

@@ -6,6 +6,7 @@
 #include "protocol/critical.hpp"
 #include "protocol/series.hpp"
 
+#include "engine/fnv1a.hpp"
 #include "engine/results.hpp"
 #include "systems/catalogue.hpp"
 #include "systems/homogenizer.hpp"
@@ -249,9 +250,10 @@ void ShearRun::resume(const State& state, CheckpointExtra& extra) {
 // rates set; a new results file.
 State ShearRun::start_from_sample(const fs::path& sample) {
   State state = read_checkpoint(sample, nullptr);
-  char digest[17];
-  std::snprintf(digest, sizeof digest, "%016llx", static_cast<unsigned long long>(particle_digest(state)));
+  const std::string digest = hex_digest(particle_digest(state));
   start_test(plan_, test_, state);
+  // The run record (docs/physics.md section 8): what `triaxial verify` needs to re-run the test from
+  // its sample and to say first when the build differs.
   std::map<std::string, std::string> attrs = {{"job", test_.name},
                                               {"stage", "shear"},
                                               {"path", path_name(test_.path)},
@@ -262,8 +264,6 @@ State ShearRun::start_from_sample(const fs::path& sample) {
                                               {"settings", resolved_settings(plan_, test_)}};
   // The command line's one override of a result (the others choose threads, tasks and stops).
   if (plan_.options.max_axial_strain > 0.0) attrs["max_axial_strain_override"] = num(plan_.options.max_axial_strain, "%.17g");
-  // The run record (docs/physics.md section 8): what `triaxial verify` needs to re-run the test from
-  // its sample and to say first when the build differs.
   results_.emplace(ResultsFile::create(path_, plan_.config.text, attrs));
   return state;
 }

@@ -9,6 +9,7 @@
 
 #include "engine/build_arch.hpp"
 #include "engine/checkpoint.hpp"
+#include "engine/fnv1a.hpp"
 #include "engine/hdf5.hpp"
 #include "engine/version.hpp"
 
@@ -71,11 +72,9 @@ std::string snapshot_difference(const fs::path& a, const fs::path& b, const std:
   return "";
 }
 
-std::string hex_digest(const std::vector<double>& d, std::size_t row) {
-  char s[17];
-  const auto hi = static_cast<unsigned long long>(d[2 * row]), lo = static_cast<unsigned long long>(d[2 * row + 1]);
-  std::snprintf(s, sizeof s, "%08llx%08llx", hi, lo);
-  return s;
+// Row `row` of a state_digest series (two exact 32-bit halves) as the digest's hex.
+std::string row_digest(const std::vector<double>& d, std::size_t row) {
+  return hex_digest((static_cast<std::uint64_t>(d[2 * row]) << 32) | static_cast<std::uint64_t>(d[2 * row + 1]));
 }
 
 }  // namespace
@@ -156,8 +155,7 @@ int verify_main(int argc, const char* const* argv, std::ostream& out, std::ostre
   CheckpointExtra sample_extra;
   try {
     const State s = read_checkpoint(sample, &sample_extra);
-    char d[17];
-    std::snprintf(d, sizeof d, "%016llx", static_cast<unsigned long long>(particle_digest(s)));
+    const std::string d = hex_digest(particle_digest(s));
     if (recorded && a.attrs["sample_digest"] != d) {
       err << "triaxial verify: " << sample.string() << ": not the sample the run started from (state digest " << d
           << ", the file's record " << a.attrs["sample_digest"] << ")\n";
@@ -253,9 +251,9 @@ int verify_main(int argc, const char* const* argv, std::ostream& out, std::ostre
       break;
     }
     std::string what;
-    if (recorded && hex_digest(a.series["state_digest"], r) != hex_digest(b.series["state_digest"], r))
-      what = "state_digest " + hex_digest(a.series["state_digest"], r) + " (file) != " +
-             hex_digest(b.series["state_digest"], r) + " (re-run)";
+    if (recorded && row_digest(a.series["state_digest"], r) != row_digest(b.series["state_digest"], r))
+      what = "state_digest " + row_digest(a.series["state_digest"], r) + " (file) != " +
+             row_digest(b.series["state_digest"], r) + " (re-run)";
     for (const auto& [name, values] : a.series) {
       if (!what.empty()) break;
       if (name == "wall_time") continue;
