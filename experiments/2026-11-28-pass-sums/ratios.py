@@ -13,6 +13,7 @@ for path in sys.argv[1:]:
     old = np.array([runs['old'][r] for r in rounds])
     new = np.array([runs['new'][r] for r in rounds])
     q = new / old
-    print(f'{path}: {len(rounds)} rounds, old median {np.median(old) / 1e6:.2f} M, new median {np.median(new) / 1e6:.2f} M '
+    print(f'{path}: {len(rounds)} rounds, old median {np.median(old) / 1e6:.2f} M, '
+          f'new median {np.median(new) / 1e6:.2f} M '
           f'particle-steps/s; new/old p10 {np.percentile(q, 10):.3f} median {np.median(q):.3f} '
           f'p90 {np.percentile(q, 90):.3f}')
