@@ -21,7 +21,7 @@ throughput and of the per-round ratios.
 
     tools/scaling_rounds.py [--rounds 30] [--threads 2 | --threads 2,4,8,16] [--steps 2000]
         [--partitions adaptive,owner,dynamic,fixed] [--liggghts] [--liggghts-one] [--minutes M]
-        [--compat] [--csv results/scaling-rounds.csv] [--bench build/release/apps/dem-bench/dem-bench]
+        [--compat] [--tile K] [--csv results/scaling-rounds.csv] [--bench build/release/apps/dem-bench/dem-bench]
 
 With one T the CSV columns are one, owner, dynamic, fixed, liggghts (as in the published
 experiments/2026-11-25-threading-windows/scaling-rounds-*.csv);
@@ -29,8 +29,9 @@ with several, each T-thread column is suffixed _T (owner_8,
 liggghts_8). --liggghts-one adds LIGGGHTS on 1 rank (liggghts_1), for LIGGGHTS's own scaling.
 The probe runs with the largest T.
 
-The scene is dem-bench's dense-20k (scene A); with --liggghts both codes run it in LIGGGHTS'
-mode (--compat: no affine term), as tools/compare-liggghts.sh does.
+The scene is dem-bench's dense-20k (scene A), or with --tile K that packing repeated K x K x K
+times (2: 160,000 spheres); with --liggghts both codes run it in LIGGGHTS' mode (--compat: no
+affine term), as tools/compare-liggghts.sh does.
 """
 import argparse
 import csv
@@ -88,6 +89,8 @@ def main():
     ap.add_argument("--liggghts-one", action="store_true", help="with --liggghts: LIGGGHTS on 1 rank too")
     ap.add_argument("--minutes", type=float, default=0.0, help="start no round after this many minutes (0: no limit)")
     ap.add_argument("--compat", action="store_true", help="dem-bench --compat (implied by --liggghts)")
+    ap.add_argument("--tile", type=int, default=1,
+                    help="the scene repeated K x K x K times (dem-bench --tile K; LIGGGHTS gets the same packing)")
     ap.add_argument("--csv", default=os.path.join(ROOT, "results", "scaling-rounds.csv"))
     ap.add_argument("--bench", default=os.path.join(ROOT, "build", "release", "apps", "dem-bench", "dem-bench"))
     args = ap.parse_args()
@@ -104,7 +107,10 @@ def main():
                  "adaptive")
     if not os.access(args.bench, os.X_OK):
         sys.exit(f"--bench {args.bench}: not an executable (build first)")
+    if args.tile < 1:
+        sys.exit(f"--tile {args.tile}: must be an integer >= 1")
     compat = ["--compat"] if (args.compat or args.liggghts) else []
+    compat += ["--tile", str(args.tile)] if args.tile > 1 else []
     name = (lambda k, T: k) if len(threads) == 1 else (lambda k, T: f"{k}_{T}")  # noqa: E731
     ranks = ([1] if args.liggghts and args.liggghts_one else []) + (threads if args.liggghts else [])
     work = tempfile.mkdtemp(prefix="scaling-")
@@ -113,7 +119,7 @@ def main():
             sys.exit("--liggghts: liggghts and mpirun must be installed (apt-get install liggghts)")
         subprocess.run([sys.executable, os.path.join(ROOT, "tools", "liggghts", "packing2data.py"),
                         os.path.join(ROOT, "apps", "dem-bench", "scenes", "dense-20k.txt"),
-                        os.path.join(work, "dense-20k.data")], check=True)
+                        os.path.join(work, "dense-20k.data"), "--tile", str(args.tile)], check=True)
     os.makedirs(os.path.dirname(os.path.abspath(args.csv)), exist_ok=True)
     rows = []
     t_start = time.monotonic()

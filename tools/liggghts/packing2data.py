@@ -1,15 +1,33 @@
 #!/usr/bin/env python3
 """Writes a sandcell plain-text packing (Lx Ly Lz N, then x y z r) as a LIGGGHTS data file
 (atom_style granular: id type diameter density x y z).
-usage: packing2data.py PACKING.txt OUT.data [density kg/m^3, default 2650]"""
+usage: packing2data.py PACKING.txt OUT.data [density kg/m^3, default 2650] [--tile K]
+--tile K repeats the periodic packing K x K x K times in a K times larger box, as dem-bench --tile K
+does (the copies in the same order: z, then y, then x offsets outermost to innermost, each copy's
+spheres in file order)."""
 import sys
 
-src, dst = sys.argv[1], sys.argv[2]
-density = float(sys.argv[3]) if len(sys.argv) > 3 else 2650.0
+args = [a for a in sys.argv[1:]]
+tile = 1
+if "--tile" in args:
+    k = args.index("--tile")
+    tile = int(args[k + 1])
+    del args[k:k + 2]
+    if tile < 1:
+        sys.exit(f"--tile {tile}: must be an integer >= 1")
+src, dst = args[0], args[1]
+density = float(args[2]) if len(args) > 2 else 2650.0
 data = [line.split() for line in open(src) if line.strip() and not line.lstrip().startswith("#")]
-lx, ly, lz, n = data[0]
+lx, ly, lz, n = (float(v) for v in data[0])
+n = int(n)
+spheres = [tuple(float(v) for v in row) for row in data[1:1 + n]]
 with open(dst, "w") as out:
-    out.write(f"sandcell packing {src}\n\n{int(n)} atoms\n1 atom types\n\n")
-    out.write(f"0 {lx} xlo xhi\n0 {ly} ylo yhi\n0 {lz} zlo zhi\n\nAtoms\n\n")
-    for k, (x, y, z, r) in enumerate(data[1:1 + int(n)], start=1):
-        out.write(f"{k} 1 {2.0 * float(r):.17g} {density} {x} {y} {z}\n")
+    out.write(f"sandcell packing {src}, tiled {tile}^3\n\n{n * tile ** 3} atoms\n1 atom types\n\n")
+    out.write(f"0 {lx * tile!r} xlo xhi\n0 {ly * tile!r} ylo yhi\n0 {lz * tile!r} zlo zhi\n\nAtoms\n\n")
+    k = 0
+    for cz in range(tile):
+        for cy in range(tile):
+            for cx in range(tile):
+                for x, y, z, r in spheres:
+                    k += 1
+                    out.write(f"{k} 1 {2.0 * r:.17g} {density} {x + cx * lx!r} {y + cy * ly!r} {z + cz * lz!r}\n")
