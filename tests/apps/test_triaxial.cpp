@@ -158,6 +158,9 @@ TEST_CASE("triaxial: each class of bad input exits 2 naming the key, and clobber
       {"a safety factor above the stability limit", base + "[time]\nstep = \"stiffness\"\nsafety = 2.0\n",
        "time.safety = 2: must be in [0.001, 1.414]"},
       {"an unknown time step rule", base + "[time]\nstep = \"adaptive\"\n", "time.step = \"adaptive\""},
+      {"a servo cap of the fixed rate alone with no fixed rate", with("shear", "max_rate_ratio = 0.0"),
+       "shear.max_rate_ratio = 0 (the fixed shear.max_rate alone) without a shear.max_rate"},
+      {"a negative servo cap ratio", with("shear", "max_rate_ratio = -2.0"), "shear.max_rate_ratio = -2: must be >= 0"},
   };
   for (const Case& c : cases) {
     const std::string what = c.what;
@@ -352,6 +355,14 @@ TEST_CASE("triaxial: the embedded default runs end to end and writes the documen
       ++checked;
     }
   CHECK(checked >= 3);
+  // The run record names the servo's cap: 20 x the axial rate by default (protocol.cpp
+  // k_max_rate_ratio), and the fixed floor it derives from the rate at p0.
+  {
+    const std::string settings = h5::File::open(results, h5::File::Mode::read).root().get_string("settings");
+    INFO(settings);
+    CHECK(settings.find("servo.max_rate_ratio = 20\n") != std::string::npos);
+    CHECK(settings.find("servo.max_rate = ") != std::string::npos);
+  }
 
   // triaxial verify: the file re-runs bitwise from its run record (its sample, its config text and
   // the --max-axial-strain it was run with), on another thread count.

@@ -67,7 +67,9 @@ struct ShearConfig {
   double integral_time = 0.0;        // s, integral time of the lateral servo (0: derived, apps/triaxial/README.md)
   double integral_strain = 0.0;      // -, the integral time is at most the time the axial rate takes to strain by
                                      // this much (0: 3e-4 at a set inertial number, else none; README.md)
-  double max_rate = 0.0;             // 1/s, cap on lateral rates (0: 10 x strain_rate)
+  double max_rate = 0.0;             // 1/s, cap on lateral rates (0: max_rate_ratio x the axial rate at p0)
+  double max_rate_ratio = -1.0;      // -, the cap is at least this multiple of the axial rate at each update
+                                     // (-1: not given: 20, or 0 with a max_rate; 0: the fixed max_rate alone)
   int servo_interval = 1;            // steps between servo updates
   double max_axial_strain = 0.2;     // -, stop at this axial (log) strain
   double max_deviatoric_strain = 0.0;  // -, also stop at this eps_q (0: none); axial stress paths only

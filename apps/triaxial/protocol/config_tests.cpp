@@ -21,7 +21,10 @@ void parse_shear(const toml::table& root, const std::string& source, ShearConfig
   s.number("gain", h.gain, 0.0, 1e9, "must be >= 0 1/s (0: derived)");
   s.number("integral_time", h.integral_time, 0.0, 1e9, "must be >= 0 s (0: derived)");
   s.number("integral_strain", h.integral_strain, 0.0, 1.0, "must be in [0, 1] (0: the derived integral time alone)");
-  s.number("max_rate", h.max_rate, 0.0, 1e9, "must be >= 0 1/s (0: 10 x the axial rate at p0)");
+  s.number("max_rate", h.max_rate, 0.0, 1e9, "must be >= 0 1/s (0: max_rate_ratio x the axial rate at p0)");
+  s.number("max_rate_ratio", h.max_rate_ratio, 0.0, 1e6,
+           "must be >= 0 (the cap on the stress-controlled axes' rates as a multiple of the axial rate; 0: the fixed "
+           "max_rate alone)");
   s.integer("servo_interval", h.servo_interval, 1, 1'000'000, "must be an integer in [1, 1e6] steps");
   s.number("max_axial_strain", h.max_axial_strain, 1e-9, 2.0, "must be in (0, 2] (logarithmic strain)");
   s.number("max_deviatoric_strain", h.max_deviatoric_strain, 0.0, 2.0,
@@ -167,6 +170,9 @@ void check_shear_for_tests(const Config& c, const std::string& source) {
     throw ConfigError(source + ": shear.strain_rate = " + num(c.shear.strain_rate) +
                       " and shear.inertial_number = " + num(c.shear.inertial_number) +
                       ": give exactly one of the two (the axial rate, or the inertial number it follows)");
+  if (c.shear.max_rate_ratio == 0.0 && !(c.shear.max_rate > 0.0))
+    throw ConfigError(source + ": shear.max_rate_ratio = 0 (the fixed shear.max_rate alone) without a "
+                      "shear.max_rate: give the fixed cap in 1/s, or a ratio > 0 (default 20)");
   if (c.shear.integral_strain > 0.0 && c.shear.integral_time > 0.0)
     throw ConfigError(source + ": shear.integral_strain = " + num(c.shear.integral_strain) +
                       " with shear.integral_time = " + num(c.shear.integral_time) +
