@@ -28,7 +28,9 @@ def test_derived_values_follow_the_documented_rules():
     assert (s.gain, s.integral_time) == sc.derived_servo("shear", 0.5e6, mat, p.servo_time)
     assert p.prepare_model(0.5e6).servo.gain == sc.derived_servo("prepare", 0.5e6, mat, p.prepare_servo_time)[0]
     assert p.servo_time == sc.servo_time_unit(p.dt, p.r_min, mat)
-    assert s.max_rate == 10 * 10.0 and s.max_rate_ratio == 10.0  # the cap follows the axial rate, 10 x
+    # The cap follows the axial rate (10 /s here), 20 x by default (shear.max_rate_ratio;
+    # experiments/2026-11-28-servo-cap), the rate at p0 its floor.
+    assert s.max_rate == 20 * 10.0 and s.max_rate_ratio == 20.0
     e_star = 7e9 / (2 * (1 - 0.3 ** 2))
     assert math.isclose(sc.derived_gain(0.05, 1e5, mat, 1e-6), 0.05 * (1e5 / e_star) ** (2 / 3) / 1e-6, rel_tol=1e-15)
     prep = p.prepare_model(0.5e6)
