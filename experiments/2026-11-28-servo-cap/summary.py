@@ -18,8 +18,14 @@ for d in sorted(glob.glob(sys.argv[1] + '/*-s20??-r??')):
         q = s['q'][:]
         eps_q = s['eps_q'][:]
         rate = s['strain_rate'][:]
-        fastest = np.max(np.abs(rate[:, :2]), axis=1)
-        at_cap = np.abs(rate[:, 2]) >= 0.999 * int(ratio[1:]) * fastest
+        # The cap in effect at each row (systems/servo.cpp limits): the run record's fixed floor
+        # servo.max_rate, or the ratio times the driven axis's rate (x) when that is larger.
+        settings = f.attrs['settings']
+        settings = settings.decode() if isinstance(settings, bytes) else settings
+        record = dict(line.split(' = ', 1) for line in settings.splitlines() if ' = ' in line)
+        floor = float(record['servo.max_rate'])
+        cap = np.maximum(floor, int(ratio[1:]) * np.abs(rate[:, 0]))
+        at_cap = np.max(np.abs(rate[:, 1:]), axis=1) >= 0.999 * cap
         w = (eps_q >= 0.002) & (eps_q <= 0.03)
         eta = q / s['p'][:]
         rows.append(dict(cell=cell, seed=seed[1:], ratio=int(ratio[1:]),

@@ -31,6 +31,13 @@ def test_derived_values_follow_the_documented_rules():
     # The cap follows the axial rate (10 /s here), 20 x by default (shear.max_rate_ratio;
     # experiments/2026-11-28-servo-cap), the rate at p0 its floor.
     assert s.max_rate == 20 * 10.0 and s.max_rate_ratio == 20.0
+    # An explicit fixed cap is used alone, unless a ratio is given beside it; a ratio alone scales the floor.
+    text = open(SMALL).read()
+    assert "max_rate" not in text.split("[shear]")[1].split("[")[0]
+    for extra, cap, ratio in (("max_rate = 50.0", 50.0, 0.0), ("max_rate = 50.0\nmax_rate_ratio = 15.0", 50.0, 15.0),
+                              ("max_rate_ratio = 15.0", 150.0, 15.0)):
+        q = sc.Protocol.parse(text.replace("[shear]", "[shear]\n" + extra, 1)).shear_model(0).servo
+        assert (q.max_rate, q.max_rate_ratio) == (cap, ratio), extra
     e_star = 7e9 / (2 * (1 - 0.3 ** 2))
     assert math.isclose(sc.derived_gain(0.05, 1e5, mat, 1e-6), 0.05 * (1e5 / e_star) ** (2 / 3) / 1e-6, rel_tol=1e-15)
     prep = p.prepare_model(0.5e6)

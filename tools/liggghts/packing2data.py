@@ -3,11 +3,11 @@
 (atom_style granular: id type diameter density x y z).
 usage: packing2data.py PACKING.txt OUT.data [density kg/m^3, default 2650] [--tile K]
 --tile K repeats the periodic packing K x K x K times in a K times larger box, as dem-bench --tile K
-does (the copies in the same order: z, then y, then x offsets outermost to innermost, each copy's
-spheres in file order)."""
+does (sandcell::tile_packing: the copies' x offset outermost, z innermost, each copy's spheres in
+file order)."""
 import sys
 
-args = [a for a in sys.argv[1:]]
+args = sys.argv[1:]
 tile = 1
 if "--tile" in args:
     k = args.index("--tile")
@@ -25,9 +25,9 @@ with open(dst, "w") as out:
     out.write(f"sandcell packing {src}, tiled {tile}^3\n\n{n * tile ** 3} atoms\n1 atom types\n\n")
     out.write(f"0 {lx * tile!r} xlo xhi\n0 {ly * tile!r} ylo yhi\n0 {lz * tile!r} zlo zhi\n\nAtoms\n\n")
     k = 0
-    for cz in range(tile):
+    for cx in range(tile):
         for cy in range(tile):
-            for cx in range(tile):
+            for cz in range(tile):
                 for x, y, z, r in spheres:
                     k += 1
                     out.write(f"{k} 1 {2.0 * r:.17g} {density} {x + cx * lx!r} {y + cy * ly!r} {z + cz * lz!r}\n")

@@ -310,7 +310,7 @@ Model shear_model(const Protocol& plan, const TestSpec& test) {
   // constant-sigma3 test away (docs/physics.md section 6). An explicit shear.max_rate is a fixed cap,
   // as set, unless shear.max_rate_ratio is given too.
   const double ratio = h.max_rate_ratio >= 0.0 ? h.max_rate_ratio : (h.max_rate > 0.0 ? 0.0 : k_max_rate_ratio);
-  s.max_rate = h.max_rate > 0.0 ? h.max_rate : std::max(ratio, 1.0) * rate0;
+  s.max_rate = h.max_rate > 0.0 ? h.max_rate : ratio * rate0;  // ratio > 0 here (config_tests.cpp refuses 0 alone)
   s.max_rate_ratio = ratio;
   const DerivedServo derived = derived_servo(Stage::shear, test.p0, m.materials[0], plan.servo_time);
   s.gain = h.gain > 0.0 ? h.gain : derived.gain;
