@@ -171,6 +171,11 @@ ResultsFile ResultsFile::create(const std::filesystem::path& path, std::string_v
 }
 
 ResultsFile ResultsFile::reopen(const std::filesystem::path& path, std::uint64_t last_step) {
+  return reopen(path, last_step, last_step);
+}
+
+ResultsFile ResultsFile::reopen(const std::filesystem::path& path, std::uint64_t last_row_step,
+                                std::uint64_t last_snapshot_step) {
   auto impl = std::make_unique<Impl>(h5::File::open(path, h5::File::Mode::read_write));
   h5::Group root = impl->file.root();
   check_format(root);
@@ -181,9 +186,10 @@ ResultsFile ResultsFile::reopen(const std::filesystem::path& path, std::uint64_t
   if (!names.empty()) {
     if (!impl->series.has("step")) impl->series.fail("no 'step' series to cut the series back by");
     const std::vector<double> steps = impl->series.open_dataset("step").read<double>();
-    // Samples are appended in step order: keep the leading rows up to last_step.
-    const auto first_after =
-        std::find_if(steps.begin(), steps.end(), [last_step](double s) { return s > static_cast<double>(last_step); });
+    // Samples are appended in step order: keep the leading rows up to last_row_step.
+    const auto first_after = std::find_if(steps.begin(), steps.end(), [last_row_step](double s) {
+      return s > static_cast<double>(last_row_step);
+    });
     const std::uint64_t keep = static_cast<std::uint64_t>(first_after - steps.begin());
     for (const std::string& name : names) {
       h5::Dataset d = impl->series.open_dataset(name);
@@ -193,7 +199,7 @@ ResultsFile ResultsFile::reopen(const std::filesystem::path& path, std::uint64_t
   }
   for (const std::string& name : impl->snapshots.children()) {
     std::uint64_t step = 0;
-    if (parse_step(name, step) && step > last_step) impl->snapshots.remove(name);
+    if (parse_step(name, step) && step > last_snapshot_step) impl->snapshots.remove(name);
   }
   impl->file.flush();
   return ResultsFile(std::move(impl));
@@ -252,6 +258,13 @@ void ResultsFile::set_attribute(std::string_view group, std::string_view name, s
 
 void ResultsFile::set_attribute(std::string_view group, std::string_view name, double value) {
   guarded([&] { impl_->file.root().require_group(group).set_value<double>(name, value); });
+}
+
+void ResultsFile::remove_attribute(std::string_view group, std::string_view name) {
+  guarded([&] {
+    h5::Group g = impl_->file.root().require_group(group);
+    if (g.has_attribute(name)) g.remove_attribute(name);
+  });
 }
 
 void ResultsFile::flush() {

@@ -42,6 +42,11 @@ class ResultsFile {
   /// Throws std::runtime_error if the file is missing, not a results file of this schema version,
   /// or has series but no /series/step to cut them by.
   static ResultsFile reopen(const std::filesystem::path& path, std::uint64_t last_step);
+  /// As reopen(path, last_step), with the series cut after last_row_step and the snapshots after
+  /// last_snapshot_step (a finished test continued to a larger strain drops the row and snapshot
+  /// written only because it ended there).
+  static ResultsFile reopen(const std::filesystem::path& path, std::uint64_t last_row_step,
+                            std::uint64_t last_snapshot_step);
 
   ResultsFile(ResultsFile&&) noexcept;
   ResultsFile& operator=(ResultsFile&&) noexcept;
@@ -63,6 +68,8 @@ class ResultsFile {
   /// Sets an attribute on a group ("/" for the root, "tests/b0.25" creates missing groups).
   void set_attribute(std::string_view group, std::string_view name, std::string_view value);
   void set_attribute(std::string_view group, std::string_view name, double value);
+  /// Removes an attribute of a group ("/" for the root) if it is there.
+  void remove_attribute(std::string_view group, std::string_view name);
 
   /// H5Fflush: a killed run leaves a readable file up to here.
   void flush();

@@ -7,6 +7,8 @@
 #include "protocol/series.hpp"
 
 #include "engine/fnv1a.hpp"
+#include "engine/hdf5.hpp"
+#include "engine/version.hpp"
 #include "engine/results.hpp"
 #include "systems/catalogue.hpp"
 #include "systems/homogenizer.hpp"
@@ -38,6 +40,9 @@ struct History {
                  {"history_e", e},           {"history_eps_q", eps_q},   {"history_z_mech", z_mech},
                  {"history_fabric_anisotropy", fabric}};
     return x;
+  }
+  void pop_back() {
+    for (std::vector<double>* v : {&eps1, &p, &q, &e, &eps_q, &z_mech, &fabric}) v->pop_back();
   }
   void load(CheckpointExtra& x) {
     eps1 = x.doubles["history_eps1"];
@@ -124,6 +129,12 @@ class ShearRun {
 
  private:
   void resume(const State& state, CheckpointExtra& extra);
+  /// Whether a complete test goes on: its end has been moved beyond where it stopped and it ended
+  /// there (not by leaving its path, at critical state or as a cyclic test).
+  bool continues(const Model& model, const State& state, CheckpointExtra& extra) const;
+  /// --resume of a complete test that continues(): as resume(), with the results file's verdict
+  /// removed and its run record brought to the new end.
+  void extend(const Model& model, const State& state, CheckpointExtra& extra);
   State start_from_sample(const fs::path& sample);
   void row();
   CheckpointExtra extras() const;
@@ -210,10 +221,14 @@ bool ShearRun::open(const Runner& runner, const fs::path& sample) {
     state = read_checkpoint(ckpt_, &extra);
     timer_.before = extra.doubles["wall_time"].at(0);
     if (extra.integers.count("complete") && extra.integers["complete"].at(0) == 1) {
-      summary_ = runner.test_summary(test_, state, extra);
-      return false;
+      if (!continues(model, state, extra)) {
+        summary_ = runner.test_summary(test_, state, extra);
+        return false;
+      }
+      extend(model, state, extra);
+    } else {
+      resume(state, extra);
     }
-    resume(state, extra);
   } else {
     state = start_from_sample(sample);
   }
@@ -244,6 +259,71 @@ void ShearRun::resume(const State& state, CheckpointExtra& extra) {
   results_.emplace(ResultsFile::reopen(path_, state.clock.step));
   resumed_ = true;
   log_.line(test_.name + ": resumed at step " + std::to_string(state.clock.step));
+}
+
+// A finished test continued to a larger strain: shear.max_deviatoric_strain, shear.max_axial_strain
+// (both allowed to change on --resume) or --max-axial-strain raised beyond where it stopped. Only a
+// test that ended at its end goes on; one that left its path stays failed, one stopped at critical
+// state (shear.stop_at_critical) stays there, and a cyclic test ends by its cycles: each says so.
+bool ShearRun::continues(const Model& model, const State& state, CheckpointExtra& extra) const {
+  if (finished(state.clock.step, travel(state.cell, state.clock), state.cell)) return false;
+  std::string ended = extra.strings.count("ended") ? extra.strings["ended"] : "";
+  if (ended.empty()) {  // a checkpoint from before this record: what ended it, from what it holds
+    if (extra.strings.count("path_failure")) {
+      ended = "failed";
+    } else if (h_.stop_at_critical) {
+      History h;
+      h.load(extra);
+      ended = h.critical(h_).reached ? "critical" : "end";  // it stopped at the first row that passed
+    } else {
+      ended = "end";
+    }
+  }
+  if (cyclic_path(model)) ended = "cyclic";
+  if (ended == "end") return true;
+  const std::string why = ended == "failed"     ? "it left its stress path"
+                          : ended == "critical" ? "it stopped at critical state (shear.stop_at_critical)"
+                                                : "a cyclic test ends by its cycles";
+  log_.line(test_.name + ": complete, not continued " + goal() + ": " + why);
+  return false;
+}
+
+// The state, series and watches as at the end, the results file cut back so that it holds what an
+// uninterrupted run to the new end would: the last row and snapshot were written because the test
+// ended there, so each goes unless it falls on its interval (the row's measures stay in the path
+// and accuracy watches, which cannot forget one: their worst values may include it). The file's
+// verdict goes (a stopped continuation is "unfinished", as any running test), and its run record
+// (config, settings, command-line override) becomes the new end's, so `triaxial verify` re-runs it
+// from its sample straight to the new end; the attribute `extended` lists each continuation.
+void ShearRun::extend(const Model& model, const State& state, CheckpointExtra& extra) {
+  const std::uint64_t s = state.clock.step;
+  std::string before;
+  {
+    const h5::File f = h5::File::open(path_, h5::File::Mode::read);
+    if (f.root().has_attribute("extended")) before = f.root().get_string("extended") + "; ";
+  }
+  history_.load(extra);
+  watch_.restore(extra.doubles["watch_worst"]);
+  if (extra.doubles.count("path_watch")) path_watch_.restore(extra.doubles["path_watch"]);
+  const bool row_on = s % o_.series_interval == 0;
+  const bool snapshot_on = o_.snapshot_interval > 0 && s % o_.snapshot_interval == 0;
+  if (!row_on) history_.pop_back();
+  results_.emplace(ResultsFile::reopen(path_, row_on ? s : s - 1, snapshot_on ? s : s - 1));
+  for (const char* key : {"status", "status_reason", "path_error", "b_error", "rotation_deg"})
+    results_->remove_attribute("/", key);
+  results_->set_attribute("/", "config", plan_.config.text);
+  results_->set_attribute("/", "settings", resolved_settings(plan_, test_));
+  if (plan_.options.max_axial_strain > 0.0)
+    results_->set_attribute("/", "max_axial_strain_override", num(plan_.options.max_axial_strain, "%.17g"));
+  else
+    results_->remove_attribute("/", "max_axial_strain_override");
+  const std::string from = sandcell::travel_text(model.servo.path, travel(state.cell, state.clock));
+  results_->set_attribute("/", "extended",
+                          before + "from step " + std::to_string(s) + " (" + from + ") " + goal() + " by sandcell " +
+                              std::string(version()));
+  results_->flush();
+  resumed_ = true;
+  log_.line(test_.name + ": complete at step " + std::to_string(s) + " (" + from + "), continued " + goal());
 }
 
 // A new test: the prepared sample with its clock, strains and servo state reset and the first
@@ -399,6 +479,8 @@ void ShearRun::finish() {
   results_->close();
   CheckpointExtra extra = extras();
   extra.integers["complete"] = {1};
+  // What ended it: a test that ended at its end may be continued to a larger one (continues()).
+  extra.strings["ended"] = summary_.left_path() ? "failed" : summary_.critical ? "critical" : "end";
   save(ckpt_, st, extra, timer_);
 
   const auto peak = std::max_element(history_.q.begin(), history_.q.end()) - history_.q.begin();

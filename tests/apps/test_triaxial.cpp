@@ -488,6 +488,78 @@ TEST_CASE("triaxial: shear.max_deviatoric_strain ends a test at the first step w
   fs::remove_all(dir);
 }
 
+TEST_CASE(
+    "triaxial: --resume with a larger end continues a finished test into the file an uninterrupted run writes") {
+  // A test run to eps_q = 0.012, then resumed with the end at 0.02 (stopped once on the way, as if
+  // killed), against one run straight to 0.02: every series column but the wall time and every
+  // snapshot bitwise the same, so the continued file is what the longer run would have written,
+  // and `triaxial verify` re-runs it from its sample. The first end's row and snapshot fall off
+  // their intervals (checked), so they are the ones the continuation must drop.
+  const fs::path dir = fresh_dir("extend");
+  std::string base = k_small;
+  base.insert(base.find("plot = false"), "snapshot_interval = 300\n");
+  std::string short_run = base, long_run = base;
+  short_run.insert(short_run.find("max_axial_strain"), "max_deviatoric_strain = 0.012\n");
+  long_run.insert(long_run.find("max_axial_strain"), "max_deviatoric_strain = 0.02\n");
+  write(dir / "short.toml", short_run);
+  write(dir / "long.toml", long_run);
+  const fs::path a = dir / "a", b = dir / "b";
+  const std::string test = "p-b0.50-p0_100kPa";
+  const Result whole = run({(dir / "long.toml").string(), "--out", a.string(), "--threads", "2"});
+  REQUIRE(whole.code == 0);
+  const Result first = run({(dir / "short.toml").string(), "--out", b.string(), "--threads", "1"});
+  INFO(first.out, first.err);
+  REQUIRE(first.code == 0);
+  const std::vector<double> short_steps = dataset(b / (test + ".h5"), "/series/step");
+  const auto end_step = static_cast<std::uint64_t>(short_steps.back());
+  REQUIRE(end_step % 100 != 0);  // the first end's row and snapshot are off their intervals
+  REQUIRE(end_step % 300 != 0);
+  CHECK(string_attribute(b / (test + ".h5"), "status") == "done");
+  // Continued, stopped 200 steps on (exit 3), resumed: an extension is resumed as any running test.
+  const Result stopped =
+      run({(dir / "long.toml").string(), "--out", b.string(), "--resume", "--threads", "3", "--stop-after", "200"});
+  INFO(stopped.out, stopped.err);
+  REQUIRE(stopped.code == 3);
+  CHECK(stopped.out.find(test + ": complete at step " + std::to_string(end_step)) != std::string::npos);
+  CHECK(string_attribute(b / (test + ".h5"), "status") == "");  // no verdict while it runs: "unfinished"
+  const Result rest = run({(dir / "long.toml").string(), "--out", b.string(), "--resume", "--threads", "2"});
+  INFO(rest.out, rest.err);
+  REQUIRE(rest.code == 0);
+  const fs::path fa = a / (test + ".h5"), fb = b / (test + ".h5");
+  CHECK(string_attribute(fb, "status") == "done");
+  CHECK(string_attribute(fb, "extended").find("from step " + std::to_string(end_step)) != std::string::npos);
+  CHECK(string_attribute(fb, "config") == long_run);
+  const auto children = [](const fs::path& file, const char* group) {
+    return h5::File::open(file, h5::File::Mode::read).root().open_group(group).children();
+  };
+  const std::vector<std::string> columns = children(fa, "series");
+  CHECK(columns == children(fb, "series"));
+  CHECK(dataset(fa, "/series/step").size() > short_steps.size());
+  for (const std::string& name : columns) {
+    if (name == "wall_time") continue;
+    CAPTURE(name);
+    CHECK(dataset(fa, "/series/" + name) == dataset(fb, "/series/" + name));
+  }
+  const std::vector<std::string> snapshots = children(fa, "snapshots");
+  CHECK(snapshots == children(fb, "snapshots"));
+  for (const std::string& g : snapshots)
+    for (const char* name : {"position", "velocity", "angular_velocity", "force"}) {
+      CAPTURE(g);
+      CAPTURE(name);
+      CHECK(dataset(fa, "/snapshots/" + g + "/" + name) == dataset(fb, "/snapshots/" + g + "/" + name));
+    }
+  const Result v = run({"verify", fb.string()});
+  INFO(v.out, v.err);
+  CHECK(v.code == 0);
+  CHECK(v.out.find("verified: rows 0..") != std::string::npos);
+  // Resumed again at the same end: nothing to do, the test is the earlier run's.
+  const Result again = run({(dir / "long.toml").string(), "--out", b.string(), "--resume"});
+  CHECK(again.code == 0);
+  CHECK(again.out.find("continued") == std::string::npos);
+  CHECK(read(b / "index.csv").find(",done (earlier run),") != std::string::npos);
+  fs::remove_all(dir);
+}
+
 TEST_CASE("triaxial: shear.inertial_number holds eps_dot_1 d50 sqrt(rho/p) at its target as p changes") {
   // Constant p and constant sigma3 (where p grows by ~20 % over 3 % strain, so a fixed axial rate
   // would let I drift by ~10 %), with the rate ramped over 0.5 % strain. The servo sets the axial

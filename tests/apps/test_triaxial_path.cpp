@@ -107,6 +107,17 @@ TEST_CASE("triaxial watch: the other tests of a campaign go on, and a failed tes
   const std::string index2 = read(dir / "out" / "index.csv");
   CHECK(index2.find(",failed,") != std::string::npos);
   CHECK(index2.find("left its stress path: rotation") != std::string::npos);
+  // A larger end on --resume continues finished tests, but not one that left its path: it stays
+  // failed and the log says why.
+  std::string longer = config;
+  longer.replace(longer.find("max_axial_strain = 0.03"), 23, "max_axial_strain = 0.05");
+  std::ofstream(dir / "c.toml") << longer;
+  const Result r3 = run(again);
+  INFO(r3.out, r3.err);
+  CHECK(r3.code == 1);
+  CHECK(r3.out.find("p-b0.50-p0_100kPa: complete, not continued to axial strain 0.05: it left its stress path") !=
+        std::string::npos);
+  CHECK(read(dir / "out" / "index.csv").find("left its stress path: rotation") != std::string::npos);
 }
 
 TEST_CASE("triaxial watch: b = 1 on constant sigma3 and constant p at a set inertial number holds its path") {
