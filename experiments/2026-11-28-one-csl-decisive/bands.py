@@ -2,7 +2,7 @@
 inside and outside the band at the end of the test.
 
     PYTHONPATH=apps/analysis /usr/bin/python3 experiments/2026-11-28-one-csl-decisive/bands.py \
-        --decisive RUN_ROOT [--free-cell FREE_CELL_OUT] [--out experiments/2026-11-28-one-csl-decisive/bands.csv]
+        --decisive RUN_ROOT [--free-cell FREE_CELL_OUT] [--large LARGE_OUT] [--out .../bands.csv]
 
 RUN_ROOT holds the run folders {fixed,free}-s{2017,2018,2019} (p-b*kPa.h5: constant p, b = 0, 0.5, 1, p0 = 0.5 and
 8 MPa, to eps_q = 0.6); FREE_CELL_OUT is experiments/2026-11-28-free-cell-banded's run folder (free cell, b = 0.25,
@@ -44,9 +44,12 @@ COLUMNS = ["campaign", "cell", "seed", "b", "p0_kPa", "status", "snapshots", "ep
            "e_in", "e_out", "e_global", "e_in_candidate", "e_out_candidate", "file"]
 
 
-def tests(decisive, free_cell):
+def tests(decisive, free_cell, large=None):
     """(campaign, cell, seed, path, its name in the CSV) of every results file, in a fixed order."""
     out = []
+    if large:  # the larger cell (large-s2020.toml: free cell, seed 2020)
+        for path in sorted(glob.glob(os.path.join(large, "p-b*kPa.h5"))):
+            out.append(("large", "free", 2020, path, os.path.basename(path)))
     if decisive:
         for cell in ("fixed", "free"):
             for seed in (2017, 2018, 2019):
@@ -93,10 +96,11 @@ def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--decisive", help="the decisive experiment's run root ({fixed,free}-s{2017,2018,2019})")
     ap.add_argument("--free-cell", help="experiments/2026-11-28-free-cell-banded's run folder")
+    ap.add_argument("--large", help="the larger cell's --out folder (large-s2020.toml)")
     ap.add_argument("--out", default=os.path.join(HERE, "bands.csv"))
     a = ap.parse_args(argv)
     rows = []
-    for t in tests(a.decisive, a.free_cell):
+    for t in tests(a.decisive, a.free_cell, a.large):
         rows.append(judge(*t))
         r = rows[-1]
         print(f"{r['campaign']} {r['cell']} {r['seed']} b {r['b']} p0 {r['p0_kPa']} kPa ({r['status']}, "
