@@ -8,6 +8,7 @@
 #include <cerrno>
 #include <cstring>
 #include <algorithm>
+#include <limits>
 #include <array>
 #include <charconv>
 #include <fstream>
@@ -68,6 +69,9 @@ struct ResultsFile::Impl {
   std::map<std::string, Series, std::less<>> open_series;
 
   std::uint64_t pending = 0;  // bytes of series rows appended since the last flush
+  // The rows a reopened file kept: a series the resumed run adds that the file lacks (one a newer
+  // build writes) starts with this many NaN rows, so that every series stays row-aligned with step.
+  std::uint64_t kept_rows = 0;
 
   explicit Impl(h5::File f) : file(std::move(f)) {}
 
@@ -99,6 +103,8 @@ struct ResultsFile::Impl {
         s.dataset.set_string("units", units);
         s.width = width;
         s.units = units;
+        const std::vector<double> missing(width, std::numeric_limits<double>::quiet_NaN());
+        for (std::uint64_t r = 0; r < kept_rows; ++r) s.dataset.append_row(h5::Scalar::f64, missing.data(), width);
       }
       it = open_series.emplace(std::string(name), std::move(s)).first;
     }
@@ -196,6 +202,7 @@ ResultsFile ResultsFile::reopen(const std::filesystem::path& path, std::uint64_t
       const std::vector<std::uint64_t> shape = d.shape();
       if (!shape.empty() && shape[0] > keep) d.set_rows(keep);
     }
+    impl->kept_rows = keep;
   }
   for (const std::string& name : impl->snapshots.children()) {
     std::uint64_t step = 0;

@@ -39,6 +39,8 @@ class ResultsFile {
                             const std::map<std::string, std::string>& attributes = {});
   /// Reopens an existing results file to continue a resumed run: every /series dataset is cut back to
   /// the rows whose `step` value is <= last_step, and snapshots with step > last_step are removed.
+  /// A series appended later that the file lacks (one a newer build writes) gets NaN in the kept
+  /// rows, so every series stays row-aligned with /series/step.
   /// Throws std::runtime_error if the file is missing, not a results file of this schema version,
   /// or has series but no /series/step to cut them by.
   static ResultsFile reopen(const std::filesystem::path& path, std::uint64_t last_step);

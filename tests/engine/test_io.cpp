@@ -396,7 +396,11 @@ TEST_CASE("results series: append and flush survive a killed writer, reopen cuts
   {
     // Reopening again at the same step changes nothing; the resumed run then appends.
     ResultsFile r = ResultsFile::reopen(path, 250);
-    for (std::uint64_t st = 300; st <= 400; st += 100) sample(r, st);
+    for (std::uint64_t st = 300; st <= 400; st += 100) {
+      sample(r, st);
+      const double pair[2] = {1.0 * st, 2.0 * st};
+      r.append("digest", pair, "-");  // a series the file lacked (a newer build's): NaN in the kept rows
+    }
     s.clock.step = 400;
     s.particles.velocity[0] = Vec3(7.0, 8.0, 9.0);
     r.write_snapshot(s);
@@ -411,6 +415,11 @@ TEST_CASE("results series: append and flush survive a killed writer, reopen cuts
   stress = read_raw(path, "/series/stress");
   CHECK(stress.dims == std::vector<hsize_t>{5, 6});
   CHECK(stress.values[6 * 4 + 0] == 400.0);
+  const Raw digest = read_raw(path, "/series/digest");
+  CHECK(digest.dims == std::vector<hsize_t>{5, 2});  // row-aligned with step
+  for (int k = 0; k < 6; ++k) CHECK(std::isnan(digest.values[k]));
+  CHECK(digest.values[6] == 300.0);
+  CHECK(digest.values[9] == 800.0);
   CHECK(read_raw(path, "/snapshots/000000000400/velocity").values[0] == 7.0);
   CHECK(read_raw(path, "/snapshots/000000000000/velocity").values[0] != 7.0);
 
