@@ -991,6 +991,18 @@ TEST_CASE("triaxial: the shipped configs parse, and default.toml is the embedded
   CHECK(fast.shear.inertial_number > 0.0);
   CHECK(fast.shear.strain_rate == 0.0);
   CHECK(fast.prepare.chain);
+  // The faster protocol: paper-fast's campaign, samples and rates, with the stiffness step and a cell
+  // free to shear (its text says what differs and why).
+  const triaxial::Config faster = triaxial::parse_config(read(dir / "paper-faster.toml"), "paper-faster.toml");
+  CHECK(faster.tests.size() == 60);
+  CHECK(faster.sample.generation.count == fast.sample.generation.count);
+  CHECK(faster.shear.inertial_number == fast.shear.inertial_number);
+  CHECK(faster.shear.max_deviatoric_strain == fast.shear.max_deviatoric_strain);
+  CHECK(faster.prepare.chain);
+  CHECK(faster.dt_rule == TimeStepRule::stiffness);
+  CHECK(faster.dt_safety == 0.8);
+  CHECK(faster.cell.free);
+  CHECK(!fast.cell.free);
 }
 
 TEST_CASE("triaxial: a campaign runs tests at once from one prepared sample, each as if alone") {
