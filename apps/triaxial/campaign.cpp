@@ -340,8 +340,8 @@ int claim_directory(const Plan& plan, const Options& options, bool selected, con
       for (const std::string& k : refused) list += (list.empty() ? "" : ", ") + k;
       err << "triaxial: " << plan.config.source << " differs from the run in " << plan.out.string()
           << " (.config.toml) in " << list
-          << "; allowed: the run's values, changes to output.*, tests.*, shear.max_axial_strain and shear.max_deviatoric_strain, or "
-          << "--allow-change KEY for a change you mean\n";
+          << "; allowed: the run's values, changes to output.*, tests.*, shear.max_axial_strain and "
+          << "shear.max_deviatoric_strain, or --allow-change KEY for a change you mean\n";
       return 2;
     }
   }
