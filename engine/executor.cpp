@@ -27,6 +27,7 @@ namespace sandcell {
 Executor::Executor(ExecutorConfig config)
     : backend_(config.backend),
       partition_(config.partition),
+      visit_order_(config.visit_order),
       active_(config.partition == Partition::adaptive ? Partition::owner : config.partition),
       adaptive_(config.adaptive) {
   // Every world has an executor: this reference links engine/cpu_guard.cpp into every program, and

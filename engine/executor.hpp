@@ -64,11 +64,30 @@ struct AdaptiveSettings {
   double hold = 30.0;
 };
 
+/// The order in which a per-particle pass over scattered pair data (the force gather,
+/// systems/force_gather.hpp) visits the particles. Every sum is the same in each; only the speed
+/// differs, and which is faster depends on whether the pair data the pass reads stays in cache.
+enum class VisitOrder {
+  sorted,    // within blocks of 128 particles by their pair counts: the loops' exits are predicted
+             // (dense-20k on the 2-core host: 1.16x the array order's throughput on 1 thread)
+  array,     // the array order, the scattered reads asked for a few particles ahead: the streams a
+             // hardware prefetcher follows (the 160,000-sphere scene: 1.13x the sorted order's)
+  adaptive,  // default: the faster of the two, timed against each other call by call (force_gather.cpp)
+};
+inline constexpr std::array<std::string_view, 3> k_visit_order_names{"sorted", "array", "adaptive"};
+inline std::string_view visit_order_name(VisitOrder v) { return k_visit_order_names[static_cast<std::size_t>(v)]; }
+inline std::optional<VisitOrder> visit_order_from_name(std::string_view name) {
+  for (std::size_t k = 0; k < k_visit_order_names.size(); ++k)
+    if (k_visit_order_names[k] == name) return static_cast<VisitOrder>(k);
+  return std::nullopt;
+}
+
 struct ExecutorConfig {
   Backend backend = Backend::tbb;
   int threads = 0;  // 0: available_cpus(); ignored by the serial backend (always 1)
   Partition partition = Partition::adaptive;
   AdaptiveSettings adaptive{};
+  VisitOrder visit_order = VisitOrder::adaptive;
 };
 
 /// Steps run under each partition, and the switches between them (Partition::adaptive).
@@ -92,6 +111,8 @@ class Executor {
   /// The partition asked for; under Partition::adaptive, active_partition() is the one in use.
   Partition partition() const { return partition_; }
   Partition active_partition() const { return active_; }
+  /// The visiting order asked for (VisitOrder; adaptive: the pass chooses).
+  VisitOrder visit_order() const { return visit_order_; }
   int threads() const { return threads_; }
 
   /// Around each step of a world (World::step_until): under Partition::adaptive the executor times
@@ -175,6 +196,7 @@ class Executor {
  private:
   Backend backend_;
   Partition partition_ = Partition::owner;
+  VisitOrder visit_order_ = VisitOrder::adaptive;
   Partition active_ = Partition::owner;  // what parallel_for runs: partition_, or adaptive's choice
   int threads_;
   std::unique_ptr<Impl> impl_;

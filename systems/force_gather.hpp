@@ -5,12 +5,32 @@
 // torque_i / torque_j slots. No atomics; the order of every sum is fixed by the pair list, so the
 // result is bitwise the same for any thread count. Reads contact_forces and gather_index; writes
 // particle forces and torques (all of them: a particle without contacts gets zero).
-// Particles are visited in GatherIndex::visit order (sorted by their pair counts within blocks of
-// 128), which changes no sum but lets the branch predictor learn the loops' trip counts:
-// docs/performance.md gives the measured effect.
+// The visiting order changes no sum, only the speed (Executor::visit_order, engine/executor.hpp):
+// - sorted: GatherIndex::visit (by pair counts within blocks of 128), so the branch predictor learns
+//   the loops' trip counts: the faster while the pair arrays stay in the last-level cache;
+// - array: particle order, the pair slots of the j entries asked for 8 particles ahead: the faster
+//   when the pair arrays stream from memory (the contact pass wrote them past the cache);
+// - adaptive (default): alternates the two call by call for a trial of 2 x 16 calls, runs the one
+//   with the smaller median time for the next 2,048 calls, then tries again.
+// docs/performance.md gives the measured effects.
 #include "engine/system.hpp"
 
+#include <array>
+#include <cstdint>
+
 namespace sandcell {
+
+/// The gather's own scratch: the state of VisitOrder::adaptive's trials, and the calls run in each
+/// order (dem-bench reports them).
+struct GatherTrials {
+  static constexpr std::uint32_t k_trial = 16;   // calls per order in a trial
+  static constexpr std::uint32_t k_hold = 2048;  // calls run in the faster order before the next trial
+  bool in_trial = true;
+  bool array = false;      // the order in use between trials
+  std::uint32_t call = 0;  // calls into the trial (< 2 k_trial: even sorted, odd array) or the hold
+  std::array<double, k_trial> sorted_seconds{}, array_seconds{};
+  std::uint64_t sorted_calls = 0, array_calls = 0, trials = 0;
+};
 
 struct ForceGather {
   static constexpr std::string_view name = "force_gather";

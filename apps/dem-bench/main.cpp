@@ -35,6 +35,7 @@
 #include "systems/contact_pass.hpp"
 #include "systems/broadphase.hpp"
 #include "systems/catalogue.hpp"
+#include "systems/force_gather.hpp"
 #include "systems/stress.hpp"
 
 #include "probe.hpp"
@@ -332,6 +333,7 @@ struct Options {
   double tile = 1;  // --tile K: the scene repeated K x K x K times
   double deform = 0.0, vchar = 0.0, shear = 0.0;
   bool json = false, serial = false, costs = false, scaling = false, probe = false, compat = false;
+  std::string visit_order = "adaptive";  // --visit-order: the force gather's (Executor::visit_order)
   std::string partition = "adaptive", rolling = "epsd2", tangential = "history", normal;
   std::string time_step = "fixed";  // --time-step: fixed (0.2 t_R) or stiffness (Model::time_step)
   double safety = 0.8, interval = 100;
@@ -363,7 +365,8 @@ std::optional<int> parse_command_line(int argc, char** argv, Options& o, Model& 
   app.footer(
       "usage: dem-bench [--scene FILE] [--tile K] [--steps N] [--threads T] [--deform RATE] [--rolling none|epsd2|epsd|cdt]\n"
       "                 [--tangential history|incremental] [--normal hertz|hooke [--vchar V]] [--compat]\n"
-      "                 [--sort STEPS] [--serial] [--partition adaptive|owner|dynamic|fixed] [--json]\n"
+      "                 [--sort STEPS] [--serial] [--partition adaptive|owner|dynamic|fixed]\n"
+      "                 [--visit-order adaptive|sorted|array] [--json]\n"
       "       dem-bench --costs [--scene FILE] [--steps N] [--threads T] [--rounds R]\n"
       "       dem-bench --probe [--threads T]   (the machine alone: register-only scaling, ping-pong, memory)\n"
       "       dem-bench --scaling [--scene FILE] [--steps N] [--threads T] [--rounds R] [--deform RATE]\n"
@@ -393,6 +396,11 @@ std::optional<int> parse_command_line(int argc, char** argv, Options& o, Model& 
   app.add_option("--partition", o.partition, "how the threads share each pass (default adaptive)")
       ->type_name("P")
       ->check(CLI::IsMember(std::vector<std::string>{"adaptive", "dynamic", "fixed", "owner"}));
+  app.add_option("--visit-order", o.visit_order,
+                 "the order in which the force gather visits the particles: sorted, array or adaptive (the default: "
+                 "the faster of the two, tried as it runs); every result is the same")
+      ->type_name("V")
+      ->check(CLI::IsMember(std::vector<std::string>{"adaptive", "array", "sorted"}));
   app.add_option("--tile", o.tile,
                  "the scene repeated K x K x K times in a K times larger box (2: 160,000 spheres from dense-20k, "
                  "4: 1,280,000): the same density, contacts per sphere and stress")
@@ -519,7 +527,8 @@ static int bench_main(int argc, char** argv) {
         bench::stream_gbs(std::size_t{64} << 20));
     return 0;
   }
-  const ExecutorConfig exec{serial ? Backend::serial : Backend::tbb, threads, partition};
+  ExecutorConfig exec{serial ? Backend::serial : Backend::tbb, threads, partition};
+  exec.visit_order = *visit_order_from_name(o.visit_order);
   World world(model, make_state(model, packing), systems_for(model), exec);
   const std::size_t n = world.state().particles.size();
   const double lz0 = world.state().cell.length[2];
@@ -542,6 +551,7 @@ static int bench_main(int argc, char** argv) {
   const auto& graph = world.graph();
   const unsigned long long digest = state_digest(world.state());
   const PartitionSteps& ps = world.executor().partition_steps();
+  const GatherTrials& gt = world.scratch().own<GatherTrials>();  // counts from the world's setup on
   const std::string partition_used{serial ? std::string_view("serial") : partition_name(partition)};
 
   if (json) {
@@ -554,6 +564,7 @@ static int bench_main(int argc, char** argv) {
         " \"time_step\": \"%s\", \"dt_s\": %.9e, \"simulated_s\": %.9e,\n"
         " \"partition\": \"%s\", \"partition_steps\": {\"owner\": %llu, \"dynamic\": %llu, \"switches\": %llu, "
         "\"trials\": %llu},\n"
+        " \"visit_order\": \"%s\", \"gather_calls\": {\"sorted\": %llu, \"array\": %llu, \"trials\": %llu},\n"
         " \"system_s\": {",
         scene.c_str(), std::string(build_arch()).c_str(), n, steps, world.executor().threads(),
         serial ? "serial" : "tbb", deform, drive.shear, model.contact.liggghts_compat ? "true" : "false", wall, rate, 2.0 * c0 / n,
@@ -562,7 +573,9 @@ static int bench_main(int argc, char** argv) {
         model.time_step.rule == TimeStepRule::stiffness ? "stiffness" : "fixed", world.model().dt,
         world.state().clock.time, partition_used.c_str(),
         static_cast<unsigned long long>(ps.owner), static_cast<unsigned long long>(ps.dynamic),
-        static_cast<unsigned long long>(ps.switches), static_cast<unsigned long long>(ps.trials));
+        static_cast<unsigned long long>(ps.switches), static_cast<unsigned long long>(ps.trials),
+        o.visit_order.c_str(), static_cast<unsigned long long>(gt.sorted_calls),
+        static_cast<unsigned long long>(gt.array_calls), static_cast<unsigned long long>(gt.trials));
     for (std::size_t k = 0; k < graph.size(); ++k)
       std::printf("%s\"%s\": %.6f", k ? ", " : "", graph.system(k).name.c_str(), graph.timers()[k]);
     std::printf("}}\n");
@@ -579,6 +592,9 @@ static int bench_main(int argc, char** argv) {
                 static_cast<unsigned long long>(ps.owner), static_cast<unsigned long long>(ps.dynamic),
                 static_cast<unsigned long long>(ps.trials), static_cast<unsigned long long>(ps.switches));
   std::printf("\n");
+  std::printf("gather order     %s (calls: %llu sorted, %llu array; %llu trials)\n", o.visit_order.c_str(),
+              static_cast<unsigned long long>(gt.sorted_calls), static_cast<unsigned long long>(gt.array_calls),
+              static_cast<unsigned long long>(gt.trials));
   std::printf("build arch       %s (SANDCELL_ARCH; results are bitwise the same for every value)\n",
               std::string(build_arch()).c_str());
   std::printf("wall (step loop) %.3f s\n", wall);

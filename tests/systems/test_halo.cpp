@@ -4,6 +4,7 @@
 #include "engine/world.hpp"
 #include "support/scenes.hpp"
 #include "systems/catalogue.hpp"
+#include "systems/force_gather.hpp"
 #include "systems/halo.hpp"
 #include "systems/pair_list.hpp"
 
@@ -149,4 +150,45 @@ TEST_CASE("adaptive partition: switching between owner and dynamic between steps
     CHECK(st.dynamic > 0);
     CHECK(st.switches >= 4);
   }
+}
+
+TEST_CASE("force gather visiting orders: sorted, array and adaptive keep every bit, with and without a halo") {
+  // The order changes which particle a thread sums when, never a sum's order (force_gather.hpp):
+  // each world must be bitwise the serial world in the sorted order. 40 steps hold the adaptive
+  // trial (2 x 16 calls, the setup's included) and the start of its hold.
+  Model model = test::quartz_model(2e-8, 0.1e-3);
+  model.contact.sort_interval = 10;
+  const State start = dense_scene(model);
+  World serial(model, start, systems_for(model), ExecutorConfig{Backend::serial, 1, Partition::owner, {}, VisitOrder::sorted});
+  serial.step(40);
+  CHECK(serial.scratch().own<GatherTrials>().array_calls == 0);
+  for (const VisitOrder order : {VisitOrder::sorted, VisitOrder::array, VisitOrder::adaptive})
+    for (const Partition partition : {Partition::owner, Partition::dynamic}) {
+      CAPTURE(visit_order_name(order));
+      CAPTURE(partition_name(partition));
+      World w(model, start, systems_for(model), ExecutorConfig{Backend::tbb, 2, partition, {}, order});
+      w.step(40);
+      CHECK(w.scratch().own<Halo>().active == (partition == Partition::owner));
+      CHECK(first_difference(w.state().particles, serial.state().particles) == "");
+      CHECK(first_difference(w.state().contacts, serial.state().contacts) == "");
+      const GatherTrials& t = w.scratch().own<GatherTrials>();
+      CHECK(t.sorted_calls + t.array_calls == 41);  // the setup's call and one per step
+      if (order == VisitOrder::adaptive) {
+        // The trial alternated the two, 16 calls each, and then held one of them.
+        CHECK(t.trials == 1);
+        CHECK(std::min(t.sorted_calls, t.array_calls) >= GatherTrials::k_trial);
+        CHECK_FALSE(t.in_trial);
+        CHECK((t.array ? t.array_calls : t.sorted_calls) == GatherTrials::k_trial + 41 - 2 * GatherTrials::k_trial);
+      } else {
+        CHECK((order == VisitOrder::array ? t.sorted_calls : t.array_calls) == 0);
+        CHECK(t.trials == 0);
+      }
+    }
+}
+
+TEST_CASE("visit order names: each order's name gives it back, and nothing else is a name") {
+  for (const VisitOrder v : {VisitOrder::sorted, VisitOrder::array, VisitOrder::adaptive})
+    CHECK(visit_order_from_name(visit_order_name(v)) == v);
+  CHECK_FALSE(visit_order_from_name("Sorted").has_value());
+  CHECK_FALSE(visit_order_from_name("").has_value());
 }
