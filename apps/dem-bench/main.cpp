@@ -333,6 +333,7 @@ struct Options {
   double tile = 1;  // --tile K: the scene repeated K x K x K times
   double deform = 0.0, vchar = 0.0, shear = 0.0;
   bool json = false, serial = false, costs = false, scaling = false, probe = false, compat = false;
+  bool servo = false;  // --servo: the stress servo and its homogenizer every step (every axis held at rate 0)
   std::string visit_order = "adaptive";  // --visit-order: the force gather's (Executor::visit_order)
   std::string partition = "adaptive", rolling = "epsd2", tangential = "history", normal;
   std::string time_step = "fixed";  // --time-step: fixed (0.2 t_R) or stiffness (Model::time_step)
@@ -396,6 +397,9 @@ std::optional<int> parse_command_line(int argc, char** argv, Options& o, Model& 
   app.add_option("--partition", o.partition, "how the threads share each pass (default adaptive)")
       ->type_name("P")
       ->check(CLI::IsMember(std::vector<std::string>{"adaptive", "dynamic", "fixed", "owner"}));
+  app.add_flag("--servo", o.servo,
+               "the stress servo on every step (every axis strain-controlled at rate 0: the cell does not move), "
+               "with the homogenizer that measures the stress for it: what stress control costs");
   app.add_option("--visit-order", o.visit_order,
                  "the order in which the force gather visits the particles: sorted, array or adaptive (the default: "
                  "the faster of the two, tried as it runs); every result is the same")
@@ -504,6 +508,13 @@ static int bench_main(int argc, char** argv) {
   model.materials.push_back(Material{2650.0, 70e9, 0.3, 0.5, 0.5, 0.1});
   model.contact.skin = 0.3e-3;  // m
   model.contact.sort_interval = static_cast<int>(o.sort_interval);
+  if (o.servo) {  // as --costs' "servo + homogenizer" variant
+    if (o.deform > 0 || o.shear != 0) usage_error("--servo: not with --deform or --shear (the servo holds the cell)");
+    model.servo.enabled = true;
+    model.servo.path = StressPath::fixed;
+    model.servo.gain = 1.0;
+    model.servo.max_rate = 1.0;
+  }
   if (o.time_step == "stiffness")  // bounded by one Rayleigh time (5 x the fixed 0.2 t_R)
     model.time_step = TimeStepSettings{TimeStepRule::stiffness, o.safety, static_cast<int>(o.interval), 5.0 * model.dt};
 
