@@ -526,6 +526,11 @@ static int bench_main(int argc, char** argv) {
   }
   if (o.tile != std::floor(o.tile)) usage_error("--tile " + std::to_string(o.tile) + ": must be an integer in [1, 8]");
   if (o.tile > 1) packing = tile_packing(packing, static_cast<int>(o.tile));
+  // Options the --costs, --scaling and --probe runs would ignore are refused, not dropped.
+  if (o.visit_order != "adaptive" && (costs || scaling || probe))
+    usage_error("--visit-order " + o.visit_order + ": only for a plain run (not with --costs, --scaling or --probe)");
+  if (o.servo && (costs || (probe && !scaling)))
+    usage_error("--servo: not with --costs (its variants add the servo themselves) or --probe");
   if (costs) return run_costs(model, packing, steps, threads, rounds);
   if (scaling) return run_scaling(model, packing, steps, threads, rounds, drive, json, probe, partition);
   if (probe) {  // the machine alone (probe.hpp), for scripts that time other programs in the same rounds

@@ -39,6 +39,8 @@ bad(--vchar 0 --normal hooke)
 bad(--bogus "")
 bad(--time-step adaptive)
 bad(--servo --deform 1)
+bad(--visit-order array --costs)
+bad(--servo --costs)
 bad(--safety 2 --time-step stiffness)
 bad(--safety 0.5)  # without --time-step stiffness it would have no effect
 bad(--interval 2.5 --time-step stiffness)
