@@ -1,0 +1,69 @@
+#!/usr/bin/env bash
+# Validates paper-faster.toml (I = 3e-3, the stiffness step, the free cell) against the paper's
+# protocol (paper.toml: 1 /s, dt = 0.2 t_R) in the same free cell, from the same prepared samples
+# (issue 46 item 1): constant p, b = 0 and b = 0.5 (banded), at 0.5 and 16 MPa, seeds 2017-2019,
+# every test to eps_q = 0.5. 24 tests; the paper's 12 take ~750,000 steps each (~4-5 h on 2 cores).
+#   1. prepares each seed's six chained samples with paper-faster.toml (--prepare-only; SAMPLES17,
+#      if given, holds seed 2017's, e.g. the paper-faster campaign's out/: the same [sample] and
+#      [prepare], so they are linked, not redone);
+#   2. shears the four tests of each seed with both protocols, two jobs at a time on one thread each.
+# Every stage resumes (--resume): rerun the same command after an interruption.
+# The comparison, fixed before any of these tests ran (as in experiments/2026-11-28-stiffness-step):
+# per measure, the mean paired difference D (faster - paper) over the three seeds with its SE;
+# "within the seed scatter" iff |D| + 2 SE <= s, s the paper protocol's seed SD of that measure;
+# "beyond" iff |D| - 2 SE > s; else "not shown". Measures: e and q/p over the last 0.1 of eps_q,
+# q/p at eps_q = 0.02, the peak q/p, and the steps.
+#   experiments/2026-11-29-validate-faster/run.sh [TRIAXIAL] [WORKDIR] [SAMPLES17]
+set -euo pipefail
+experiment="$(cd "$(dirname "$0")" && pwd)"
+here="$(cd "$experiment/../.." && pwd)"
+triaxial="${1:-$here/build/release/apps/triaxial/triaxial}"
+work="${2:-$here/results/validate-faster}"
+samples17="${3:-}"
+configs="$here/apps/triaxial/configs"
+mkdir -p "$work"
+
+narrow() { sed "s/^p0 = .*/p0 = [$2]/; s/^path = .*/path = [\"constant_p\"]/; s/^b = .*/b = [$3]/; s/^parallel = .*/parallel = 1/" "$1"; }
+seeded() { sed "s/^seed = .*/seed = $2/" "$configs/$1.toml"; }
+run() {  # run DIR CONFIG_TEXT THREADS [ARGS...]: one job, resumable, its log in DIR.log
+  local dir="$1" text="$2" threads="$3"
+  shift 3
+  mkdir -p "$dir"
+  printf '%s\n' "$text" > "$dir.toml"
+  "$triaxial" "$dir.toml" --out "$dir" --threads "$threads" --resume "$@" >> "$dir.log" 2>&1 ||
+    { echo "failed: $dir (see $dir.log)"; return 1; }
+}
+# shear NAME SEED PROTOCOL P0 B: a constant-p test on seed SEED's prepared sample.
+shear() {
+  local dir="$work/$1" tag="p0_$(awk "BEGIN{print $4/1e3}")kPa"
+  mkdir -p "$dir"
+  [ -e "$dir/sample-$tag.h5" ] || ln "$work/prepare-s$2/sample-$tag.h5" "$dir/"
+  seeded "$3" "$2" > "$work/$1.base.toml"
+  local allow=()
+  if [ "$3" = "paper" ]; then
+    # The paper's rate and step in the same free cell; it shears paper-faster's sample as it is.
+    printf '[cell]\nshear = "free"\n' >> "$work/$1.base.toml"
+    allow=(--allow-change prepare.chain prepare.dt_fraction)
+  fi
+  run "$dir" "$(narrow "$work/$1.base.toml" "$4" "$5")" 1 ${allow[@]+"${allow[@]}"}
+}
+
+for seed in 2017 2018 2019; do
+  if [ "$seed" = 2017 ] && [ -n "$samples17" ]; then
+    mkdir -p "$work/prepare-s2017"
+    for f in "$samples17"/sample-p0_*kPa.h5; do [ -e "$work/prepare-s2017/$(basename "$f")" ] || ln "$f" "$work/prepare-s2017/"; done
+  else
+    echo "$(date +%T) preparing seed $seed"
+    run "$work/prepare-s$seed" "$(seeded paper-faster $seed)" 2 --prepare-only
+  fi
+  for proto in paper-faster paper; do
+    echo "$(date +%T) seed $seed, $proto"
+    shear "$proto-s$seed-p0_500kPa-b0" $seed $proto 0.5e6 0.0 & a=$!
+    shear "$proto-s$seed-p0_500kPa-b0.5" $seed $proto 0.5e6 0.5 & b=$!
+    wait $a; wait $b
+    shear "$proto-s$seed-p0_16000kPa-b0" $seed $proto 16.0e6 0.0 & a=$!
+    shear "$proto-s$seed-p0_16000kPa-b0.5" $seed $proto 16.0e6 0.5 & b=$!
+    wait $a; wait $b
+  done
+done
+echo "$(date +%T) done: $work"
