@@ -59,6 +59,15 @@ def judge(d, se, s):
     return "not shown"
 
 
+def write_rows(path, rows):
+    """The rows as CSV, floats to 6 significant digits."""
+    with open(path, "w", newline="") as fh:
+        w = csv.DictWriter(fh, fieldnames=list(rows[0]), lineterminator="\n")
+        w.writeheader()
+        for r in rows:
+            w.writerow({k: (f"{v:.6g}" if isinstance(v, float) else v) for k, v in r.items()})
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("ref")
@@ -88,11 +97,7 @@ def main(argv=None):
             r = rows[-1]
             print(f"{test} {m:8s}: n {n}, fixed {r['fixed_mean']:.4f}, D {d:+.4f} +- {se:.4f}, seed SD {s:.4f}: "
                   f"{r['verdict']}; steps {r['steps_fixed']} -> {r['steps_stiffness']}")
-    with open(a.out, "w", newline="") as fh:
-        w = csv.DictWriter(fh, fieldnames=list(rows[0]), lineterminator="\n")
-        w.writeheader()
-        for r in rows:
-            w.writerow({k: (f"{v:.6g}" if isinstance(v, float) else v) for k, v in r.items()})
+    write_rows(a.out, rows)
     return 0
 
 

@@ -17,7 +17,6 @@ Criterion, fixed in README.md before any of these tests finished (as experiments
 - "within the seed scatter" when |D| + 2 SE_D <= s; "beyond" when |D| - 2 SE_D > s; else "not shown".
 """
 import argparse
-import csv
 import math
 import os
 import sys
@@ -26,10 +25,12 @@ import numpy as np
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, os.path.join(HERE, "..", "2026-11-28-one-csl-decisive"))
+sys.path.append(os.path.join(HERE, "..", "2026-11-28-stiffness-step"))  # after: it has an analyze.py of its own
 sys.path.insert(0, os.path.join(HERE, "..", "..", "apps", "analysis"))
 
 import analyze  # noqa: E402
 from sandcell_analysis import results  # noqa: E402
+from seeds import judge, write_rows  # noqa: E402  (the same criterion and table as the stiffness step's)
 
 SEEDS = (2017, 2018, 2019)
 CASES = [(p, b) for p in ("500kPa", "16000kPa") for b in ("0", "0.5")]
@@ -48,16 +49,6 @@ def measures(work, protocol, seed, p0, b):
     k = min(int(np.searchsorted(cols["eps_q"], 0.02)), len(cols["eta"]) - 1)
     return dict(ok=status.startswith("done") and end["eps_q_end"] >= 0.499, e=end["e"], eta=end["eta"],
                 eta_2pct=float(cols["eta"][k]), peak_eta=float(np.nanmax(cols["eta"])), steps=int(cols["step"][-1]))
-
-
-def judge(d, se, s):
-    if not all(math.isfinite(v) for v in (d, se, s)):
-        return "not shown (fewer than two pairs)"
-    if abs(d) + 2 * se <= s:
-        return "within the seed scatter"
-    if abs(d) - 2 * se > s:
-        return "beyond the seed scatter"
-    return "not shown"
 
 
 def main(argv=None):
@@ -87,11 +78,7 @@ def main(argv=None):
             r = rows[-1]
             print(f"{p0} b {b} {m:8s}: n {n}, paper {r['paper_mean']:.4f}, D {d:+.4f} +- {se:.4f}, "
                   f"seed SD {s:.4f}: {r['verdict']}; steps {r['steps_paper']} -> {r['steps_faster']}")
-    with open(a.out, "w", newline="") as fh:
-        w = csv.DictWriter(fh, fieldnames=list(rows[0]), lineterminator="\n")
-        w.writeheader()
-        for r in rows:
-            w.writerow({k: (f"{v:.6g}" if isinstance(v, float) else v) for k, v in r.items()})
+    write_rows(a.out, rows)
     return 0
 
 
