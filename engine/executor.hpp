@@ -44,11 +44,17 @@ enum class Partition {
 /// --thread-partition and the Python World's `partition` take.
 inline constexpr std::array<std::string_view, 4> k_partition_names{"owner", "dynamic", "fixed", "adaptive"};
 inline std::string_view partition_name(Partition p) { return k_partition_names[static_cast<std::size_t>(p)]; }
+/// The enum value whose name is `name` (exactly) in a table of names indexed by the enum's values,
+/// or none: k_partition_names, k_visit_order_names.
+template <class Enum, std::size_t N>
+std::optional<Enum> from_name(const std::array<std::string_view, N>& names, std::string_view name) {
+  for (std::size_t k = 0; k < N; ++k)
+    if (names[k] == name) return static_cast<Enum>(k);
+  return std::nullopt;
+}
 /// The partition named `name` (exactly, as in k_partition_names), or none.
 inline std::optional<Partition> partition_from_name(std::string_view name) {
-  for (std::size_t k = 0; k < k_partition_names.size(); ++k)
-    if (k_partition_names[k] == name) return static_cast<Partition>(k);
-  return std::nullopt;
+  return from_name<Partition>(k_partition_names, name);
 }
 
 /// The trials of Partition::adaptive. Each of the four batches of a trial runs at least
@@ -77,9 +83,7 @@ enum class VisitOrder {
 inline constexpr std::array<std::string_view, 3> k_visit_order_names{"sorted", "array", "adaptive"};
 inline std::string_view visit_order_name(VisitOrder v) { return k_visit_order_names[static_cast<std::size_t>(v)]; }
 inline std::optional<VisitOrder> visit_order_from_name(std::string_view name) {
-  for (std::size_t k = 0; k < k_visit_order_names.size(); ++k)
-    if (k_visit_order_names[k] == name) return static_cast<VisitOrder>(k);
-  return std::nullopt;
+  return from_name<VisitOrder>(k_visit_order_names, name);
 }
 
 struct ExecutorConfig {

@@ -103,25 +103,27 @@ void ForceGather::run(const Model&, State& state, Scratch& scratch, Executor& ex
   GatherTrials& trials = scratch.own<GatherTrials>();
   const VisitOrder asked = exec.visit_order();
   const bool adaptive = asked == VisitOrder::adaptive;
-  const bool array = adaptive ? (trials.in_trial ? trials.call % 2 == 1 : trials.array) : asked == VisitOrder::array;
-  const auto start = std::chrono::steady_clock::now();
+  const bool array = adaptive ? trials.next_array() : asked == VisitOrder::array;
+  const auto start = adaptive ? std::chrono::steady_clock::now() : std::chrono::steady_clock::time_point{};
   if (array)
     gather_all<false>(in, index, halo, force.data(), torque.data(), force.size(), exec);
   else
     gather_all<true>(in, index, halo, force.data(), torque.data(), force.size(), exec);
-  ++(array ? trials.array_calls : trials.sorted_calls);
-  if (!adaptive) return;
-  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-  if (!trials.in_trial) {
-    if (++trials.call == GatherTrials::k_hold) trials.in_trial = true, trials.call = 0;
+  trials.count(array);
+  if (adaptive) trials.record(std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count());
+}
+
+void GatherTrials::record(double seconds) {
+  if (!in_trial) {
+    if (++call == k_hold) in_trial = true, call = 0;
     return;
   }
-  (array ? trials.array_seconds : trials.sorted_seconds)[trials.call / 2] = seconds;
-  if (++trials.call < 2 * GatherTrials::k_trial) return;
-  trials.array = median_of(trials.array_seconds) < median_of(trials.sorted_seconds);
-  trials.in_trial = false;
-  trials.call = 0;
-  ++trials.trials;
+  (call % 2 == 1 ? array_seconds : sorted_seconds)[call / 2] = seconds;
+  if (++call < 2 * k_trial) return;
+  array = median_of(array_seconds) < median_of(sorted_seconds);
+  in_trial = false;
+  call = 0;
+  ++trials;
 }
 
 }  // namespace sandcell

@@ -21,7 +21,9 @@
 namespace sandcell {
 
 /// The gather's own scratch: the state of VisitOrder::adaptive's trials, and the calls run in each
-/// order (dem-bench reports them).
+/// order (dem-bench reports them). A trial alternates the orders call by call (sorted first), 16
+/// calls each; the order with the smaller median time then runs for 2,048 calls, and a new trial
+/// starts. The bookkeeping is here, apart from the clock, so that a test can feed it chosen times.
 struct GatherTrials {
   static constexpr std::uint32_t k_trial = 16;   // calls per order in a trial
   static constexpr std::uint32_t k_hold = 2048;  // calls run in the faster order before the next trial
@@ -30,6 +32,13 @@ struct GatherTrials {
   std::uint32_t call = 0;  // calls into the trial (< 2 k_trial: even sorted, odd array) or the hold
   std::array<double, k_trial> sorted_seconds{}, array_seconds{};
   std::uint64_t sorted_calls = 0, array_calls = 0, trials = 0;
+
+  /// Whether the next adaptive call runs the array order.
+  bool next_array() const { return in_trial ? call % 2 == 1 : array; }
+  /// Counts a call in the order it ran (any VisitOrder).
+  void count(bool ran_array) { ++(ran_array ? array_calls : sorted_calls); }
+  /// An adaptive call's time, in the order next_array() gave it (counted with count()).
+  void record(double seconds);
 };
 
 struct ForceGather {

@@ -404,7 +404,7 @@ std::optional<int> parse_command_line(int argc, char** argv, Options& o, Model& 
                  "the order in which the force gather visits the particles: sorted, array or adaptive (the default: "
                  "the faster of the two, tried as it runs); every result is the same")
       ->type_name("V")
-      ->check(CLI::IsMember(std::vector<std::string>{"adaptive", "array", "sorted"}));
+      ->check(CLI::IsMember(std::vector<std::string>(k_visit_order_names.begin(), k_visit_order_names.end())));
   app.add_option("--tile", o.tile,
                  "the scene repeated K x K x K times in a K times larger box (2: 160,000 spheres from dense-20k, "
                  "4: 1,280,000): the same density, contacts per sphere and stress")

@@ -49,6 +49,17 @@ def measures(folder, test):
                 eta_2pct=float(cols["eta"][k]), steps=int(cols["step"][-1]))
 
 
+def paired(pairs, m):
+    """Over pairs (seed, reference, new): the reference mean of measure m, D = the mean of (new - reference),
+    SE_D = the SD of those differences / sqrt(n), s = the reference's sample SD (NaN where undefined)."""
+    diff = np.array([g[m] - f[m] for _, f, g in pairs])
+    ref = np.array([f[m] for _, f, _ in pairs])
+    n = len(pairs)
+    return (float(ref.mean()) if n else math.nan, float(diff.mean()) if n else math.nan,
+            float(diff.std(ddof=1) / math.sqrt(n)) if n > 1 else math.nan,
+            float(ref.std(ddof=1)) if n > 1 else math.nan)
+
+
 def judge(d, se, s):
     if not all(math.isfinite(v) for v in (d, se, s)):
         return "not shown (fewer than two pairs)"
@@ -83,15 +94,10 @@ def main(argv=None):
             if f and g and f["ok"] and g["ok"]:
                 pairs.append((seed, f, g))
         for m in ("e", "eta", "eta_2pct"):
-            diff = np.array([g[m] - f[m] for _, f, g in pairs])
-            fixed = np.array([f[m] for _, f, _ in pairs])
             n = len(pairs)
-            d = float(diff.mean()) if n else math.nan
-            se = float(diff.std(ddof=1) / math.sqrt(n)) if n > 1 else math.nan
-            s = float(fixed.std(ddof=1)) if n > 1 else math.nan
+            mean, d, se, s = paired(pairs, m)
             rows.append(dict(test=test, measure=m, pairs=n, seeds=" ".join(str(p[0]) for p in pairs),
-                             fixed_mean=float(fixed.mean()) if n else math.nan, D=d, SE_D=se, seed_sd=s,
-                             verdict=judge(d, se, s),
+                             fixed_mean=mean, D=d, SE_D=se, seed_sd=s, verdict=judge(d, se, s),
                              steps_fixed=int(sum(f["steps"] for _, f, _ in pairs)),
                              steps_stiffness=int(sum(g["steps"] for _, _, g in pairs))))
             r = rows[-1]

@@ -17,7 +17,6 @@ Criterion, fixed in README.md before any of these tests finished (as experiments
 - "within the seed scatter" when |D| + 2 SE_D <= s; "beyond" when |D| - 2 SE_D > s; else "not shown".
 """
 import argparse
-import math
 import os
 import sys
 
@@ -30,7 +29,7 @@ sys.path.insert(0, os.path.join(HERE, "..", "..", "apps", "analysis"))
 
 import analyze  # noqa: E402
 from sandcell_analysis import results  # noqa: E402
-from seeds import judge, write_rows  # noqa: E402  (the same criterion and table as the stiffness step's)
+from seeds import judge, paired, write_rows  # noqa: E402  (the same criterion and table as the stiffness step's)
 
 SEEDS = (2017, 2018, 2019)
 CASES = [(p, b) for p in ("500kPa", "16000kPa") for b in ("0", "0.5")]
@@ -65,15 +64,11 @@ def main(argv=None):
             if ref and fast and ref["ok"] and fast["ok"]:
                 pairs.append((seed, ref, fast))
         for m in MEASURES:
-            diff = np.array([g[m] - f[m] for _, f, g in pairs])
-            ref_values = np.array([f[m] for _, f, _ in pairs])
             n = len(pairs)
-            d = float(diff.mean()) if n else math.nan
-            se = float(diff.std(ddof=1) / math.sqrt(n)) if n > 1 else math.nan
-            s = float(ref_values.std(ddof=1)) if n > 1 else math.nan
+            mean, d, se, s = paired(pairs, m)
             rows.append(dict(p0=p0, b=b, measure=m, pairs=n, seeds=" ".join(str(p[0]) for p in pairs),
-                             paper_mean=float(ref_values.mean()) if n else math.nan, D=d, SE_D=se, seed_sd=s,
-                             verdict=judge(d, se, s), steps_paper=int(sum(f["steps"] for _, f, _ in pairs)),
+                             paper_mean=mean, D=d, SE_D=se, seed_sd=s, verdict=judge(d, se, s),
+                             steps_paper=int(sum(f["steps"] for _, f, _ in pairs)),
                              steps_faster=int(sum(g["steps"] for _, _, g in pairs))))
             r = rows[-1]
             print(f"{p0} b {b} {m:8s}: n {n}, paper {r['paper_mean']:.4f}, D {d:+.4f} +- {se:.4f}, "

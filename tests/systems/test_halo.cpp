@@ -192,3 +192,33 @@ TEST_CASE("visit order names: each order's name gives it back, and nothing else 
   CHECK_FALSE(visit_order_from_name("Sorted").has_value());
   CHECK_FALSE(visit_order_from_name("").has_value());
 }
+
+TEST_CASE("force gather trials: the order with the smaller median time is held, then tried again") {
+  // Chosen times (GatherTrials without the clock): in the trial the calls alternate sorted, array.
+  // A median, so one slow outlier per order does not decide; after k_hold calls a new trial starts.
+  const auto run_trial = [](GatherTrials& t, double sorted_s, double array_s, double outlier_s) {
+    for (std::uint32_t k = 0; k < 2 * GatherTrials::k_trial; ++k) {
+      REQUIRE(t.in_trial);
+      const bool array = t.next_array();
+      CHECK(array == (k % 2 == 1));
+      t.count(array);
+      t.record(k < 2 ? outlier_s : array ? array_s : sorted_s);  // calls 0, 1: one outlier in each order
+    }
+  };
+  GatherTrials t;
+  run_trial(t, 2.0e-3, 1.0e-3, 9.0);  // array faster, each order's first call a 9 s outlier
+  CHECK_FALSE(t.in_trial);
+  CHECK(t.array);
+  CHECK(t.trials == 1);
+  for (std::uint32_t k = 0; k < GatherTrials::k_hold; ++k) {
+    CHECK(t.next_array());  // the hold runs the winner
+    t.count(true);
+    t.record(5.0);          // times in the hold decide nothing
+  }
+  CHECK(t.in_trial);
+  run_trial(t, 1.0e-3, 3.0e-3, 0.0);  // now sorted faster, outliers fast: the medians still decide
+  CHECK_FALSE(t.array);
+  CHECK(t.trials == 2);
+  CHECK(t.sorted_calls == 2 * GatherTrials::k_trial);  // two trials, 16 each
+  CHECK(t.array_calls == 2 * GatherTrials::k_trial + GatherTrials::k_hold);
+}
