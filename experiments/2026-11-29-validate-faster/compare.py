@@ -1,11 +1,15 @@
 """paper-faster.toml against the paper's rate (paper.toml in the free cell), three seeds (issue 46 item 1).
 
-    PYTHONPATH=apps/analysis /usr/bin/python3 experiments/2026-11-29-validate-faster/compare.py WORKDIR \
+    PYTHONPATH=apps/analysis /usr/bin/python3 experiments/2026-11-29-validate-faster/compare.py [WORKDIR] \
+        [--tests experiments/2026-11-29-validate-faster/tests.csv] \
         [--out experiments/2026-11-29-validate-faster/compare.csv]
 
 WORKDIR is run.sh's: {paper,paper-faster}-s{2017,2018,2019}-p0_{500,16000}kPa-b{0,0.5}/, each with its one
-constant-p test. Each paper-faster test pairs with the paper-protocol test of its own sample. Writes one row per
-(p0, b, measure).
+constant-p test. The campaign outlives the machines it runs on (each session may start on a fresh one, and
+results files are not committed), so every finished test's measures go into TESTS, a CSV kept in git: a test
+found in WORKDIR is measured from its file and its row replaced; the rows of tests run on earlier machines are
+kept. Each row carries the test's last state digest, so `triaxial verify` of a re-run checks it bitwise. Each
+paper-faster test pairs with the paper-protocol test of its own sample. Writes one row per (p0, b, measure).
 
 Measures: over the last 0.1 of eps_q (the decisive experiment's analyze.one_test) the mean e and q/p; q/p at
 eps_q = 0.02; the peak q/p; the steps taken.
@@ -17,6 +21,7 @@ Criterion, fixed in README.md before any of these tests finished (as experiments
 - "within the seed scatter" when |D| + 2 SE_D <= s; "beyond" when |D| - 2 SE_D > s; else "not shown".
 """
 import argparse
+import csv
 import os
 import sys
 
@@ -34,6 +39,7 @@ from seeds import judge, paired, write_rows  # noqa: E402  (the same criterion a
 SEEDS = (2017, 2018, 2019)
 CASES = [(p, b) for p in ("500kPa", "16000kPa") for b in ("0", "0.5")]
 MEASURES = ("e", "eta", "eta_2pct", "peak_eta")
+KEY = ("protocol", "seed", "p0", "b")
 
 
 def measures(work, protocol, seed, p0, b):
@@ -44,23 +50,58 @@ def measures(work, protocol, seed, p0, b):
         return None
     status = analyze.index_status(folder).get(test, "running")
     end = analyze.one_test(path, status)
-    cols = results.read_columns(path, ["eps_q", "eta", "step"])
+    cols = results.read_columns(path, ["eps_q", "eta", "step"], optional=["state_digest"])
     k = min(int(np.searchsorted(cols["eps_q"], 0.02)), len(cols["eta"]) - 1)
-    return dict(ok=status.startswith("done") and end["eps_q_end"] >= 0.499, e=end["e"], eta=end["eta"],
-                eta_2pct=float(cols["eta"][k]), peak_eta=float(np.nanmax(cols["eta"])), steps=int(cols["step"][-1]))
+    halves = np.ravel(cols["state_digest"][-1]) if "state_digest" in cols else ()  # verify.cpp's row_digest
+    last = f"{(int(halves[0]) << 32) | int(halves[1]):016x}" if len(halves) == 2 else ""
+    return dict(protocol=protocol, seed=seed, p0=p0, b=b, status=status.split()[0] if status else "running",
+                ok=status.startswith("done") and end["eps_q_end"] >= 0.499, eps_q_end=end["eps_q_end"],
+                e=end["e"], eta=end["eta"], eta_2pct=float(cols["eta"][k]), peak_eta=float(np.nanmax(cols["eta"])),
+                steps=int(cols["step"][-1]), rows=len(cols["step"]), state_digest=last)
+
+
+def read_tests(path):
+    """tests.csv's rows by (protocol, seed, p0, b), numbers parsed back."""
+    if not os.path.exists(path):
+        return {}
+    out = {}
+    with open(path, newline="") as fh:
+        for r in csv.DictReader(fh):
+            for k in ("eps_q_end", "e", "eta", "eta_2pct", "peak_eta"):
+                r[k] = float(r[k])
+            r["seed"], r["steps"], r["rows"] = int(r["seed"]), int(r["steps"]), int(r["rows"])
+            r["ok"] = r["ok"] == "True"
+            out[tuple(r[k] for k in KEY)] = r
+    return out
+
+
+def update_tests(work, path):
+    """Measures every test of WORKDIR into tests.csv (rows of other machines kept); returns all rows by key."""
+    tests = read_tests(path)
+    for protocol in ("paper", "paper-faster"):
+        for seed in SEEDS:
+            for p0, b in CASES:
+                m = measures(work, protocol, seed, p0, b) if work else None
+                if m is not None and m["ok"]:
+                    tests[(protocol, seed, p0, b)] = m
+    if tests:
+        write_rows(path, [tests[k] for k in sorted(tests, key=lambda k: (k[1], k[0], k[2], k[3]))])
+    return tests
 
 
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("work")
+    ap.add_argument("work", nargs="?", help="run.sh's WORKDIR (omit to compare tests.csv's rows alone)")
+    ap.add_argument("--tests", default=os.path.join(HERE, "tests.csv"))
     ap.add_argument("--out", default=os.path.join(HERE, "compare.csv"))
     a = ap.parse_args(argv)
+    tests = update_tests(a.work, a.tests)
     rows = []
     for p0, b in CASES:
         pairs = []
         for seed in SEEDS:
-            ref = measures(a.work, "paper", seed, p0, b)
-            fast = measures(a.work, "paper-faster", seed, p0, b)
+            ref = tests.get(("paper", seed, p0, b))
+            fast = tests.get(("paper-faster", seed, p0, b))
             if ref and fast and ref["ok"] and fast["ok"]:
                 pairs.append((seed, ref, fast))
         for m in MEASURES:

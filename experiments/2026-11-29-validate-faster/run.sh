@@ -7,19 +7,23 @@
 #      if given, holds seed 2017's, e.g. the paper-faster campaign's out/: the same [sample] and
 #      [prepare], so they are linked, not redone);
 #   2. shears the four tests of each seed with both protocols, two jobs at a time on one thread each.
-# Every stage resumes (--resume): rerun the same command after an interruption.
+# Every stage resumes (--resume): rerun the same command after an interruption. The campaign spans
+# sessions on machines that may not keep WORKDIR, so a test whose measures are already in TESTS
+# (compare.py's tests.csv, kept in git) is not run again, and a seed none of whose tests is left is
+# not prepared.
 # The comparison, fixed before any of these tests ran (as in experiments/2026-11-28-stiffness-step):
 # per measure, the mean paired difference D (faster - paper) over the three seeds with its SE;
 # "within the seed scatter" iff |D| + 2 SE <= s, s the paper protocol's seed SD of that measure;
 # "beyond" iff |D| - 2 SE > s; else "not shown". Measures: e and q/p over the last 0.1 of eps_q,
 # q/p at eps_q = 0.02, the peak q/p, and the steps.
-#   experiments/2026-11-29-validate-faster/run.sh [TRIAXIAL] [WORKDIR] [SAMPLES17]
+#   experiments/2026-11-29-validate-faster/run.sh [TRIAXIAL] [WORKDIR] [SAMPLES17] [TESTS]
 set -euo pipefail
 experiment="$(cd "$(dirname "$0")" && pwd)"
 here="$(cd "$experiment/../.." && pwd)"
 triaxial="${1:-$here/build/release/apps/triaxial/triaxial}"
 work="${2:-$here/results/validate-faster}"
 samples17="${3:-}"
+tests="${4:-$experiment/tests.csv}"
 configs="$here/apps/triaxial/configs"
 mkdir -p "$work"
 
@@ -33,9 +37,12 @@ run() {  # run DIR CONFIG_TEXT THREADS [ARGS...]: one job, resumable, its log in
   "$triaxial" "$dir.toml" --out "$dir" --threads "$threads" --resume "$@" >> "$dir.log" 2>&1 ||
     { echo "failed: $dir (see $dir.log)"; return 1; }
 }
+# measured PROTOCOL SEED P0TAG BTAG: whether TESTS holds that test, done on its path to the end.
+measured() { [ -e "$tests" ] && grep -q "^$1,$2,$3,$4,done,True," "$tests"; }
 # shear NAME SEED PROTOCOL P0 B: a constant-p test on seed SEED's prepared sample.
 shear() {
   local dir="$work/$1" tag="p0_$(awk "BEGIN{print $4/1e3}")kPa"
+  if measured "$3" "$2" "${tag#p0_}" "${1##*-b}"; then echo "$(date +%T) $1: in $(basename "$tests"), not run"; return 0; fi
   mkdir -p "$dir"
   [ -e "$dir/sample-$tag.h5" ] || ln "$work/prepare-s$2/sample-$tag.h5" "$dir/"
   seeded "$3" "$2" > "$work/$1.base.toml"
@@ -49,6 +56,11 @@ shear() {
 }
 
 for seed in 2017 2018 2019; do
+  left=0
+  for proto in paper-faster paper; do for p in 500kPa 16000kPa; do for b in 0 0.5; do
+    measured $proto $seed $p $b || left=$((left + 1))
+  done; done; done
+  if [ $left = 0 ]; then echo "$(date +%T) seed $seed: all in $(basename "$tests")"; continue; fi
   if [ "$seed" = 2017 ] && [ -n "$samples17" ]; then
     mkdir -p "$work/prepare-s2017"
     for f in "$samples17"/sample-p0_*kPa.h5; do [ -e "$work/prepare-s2017/$(basename "$f")" ] || ln "$f" "$work/prepare-s2017/"; done
