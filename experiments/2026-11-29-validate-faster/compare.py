@@ -8,7 +8,8 @@ WORKDIR is run.sh's: {paper,paper-faster}-s{2017,2018,2019}-p0_{500,16000}kPa-b{
 constant-p test. The campaign outlives the machines it runs on (each session may start on a fresh one, and
 results files are not committed), so every finished test's measures go into TESTS, a CSV kept in git: a test
 found in WORKDIR is measured from its file and its row replaced; the rows of tests run on earlier machines are
-kept. Each row carries the test's last state digest, so `triaxial verify` of a re-run checks it bitwise. Each
+kept. Each row carries the test's last state digest, so `triaxial verify` of a re-run checks it bitwise, and
+the build that ran it (the first line of WORKDIR/BUILD.txt, run.sh's: the commit it was built from). Each
 paper-faster test pairs with the paper-protocol test of its own sample. Writes one row per (p0, b, measure).
 
 Measures: over the last 0.1 of eps_q (the decisive experiment's analyze.one_test) the mean e and q/p; q/p at
@@ -42,6 +43,15 @@ MEASURES = ("e", "eta", "eta_2pct", "peak_eta")
 KEY = ("protocol", "seed", "p0", "b")
 
 
+def build_of(work):
+    """The first line of WORKDIR/BUILD.txt (the commit the campaign's binary was built from), '' if none."""
+    path = os.path.join(work, "BUILD.txt")
+    if not os.path.exists(path):
+        return ""
+    with open(path) as fh:
+        return fh.readline().strip()
+
+
 def measures(work, protocol, seed, p0, b):
     folder = os.path.join(work, f"{protocol}-s{seed}-p0_{p0}-b{b}")
     test = f"p-b{float(b):.2f}-p0_{p0}"
@@ -57,7 +67,7 @@ def measures(work, protocol, seed, p0, b):
     return dict(protocol=protocol, seed=seed, p0=p0, b=b, status=status.split()[0] if status else "running",
                 ok=status.startswith("done") and end["eps_q_end"] >= 0.499, eps_q_end=end["eps_q_end"],
                 e=end["e"], eta=end["eta"], eta_2pct=float(cols["eta"][k]), peak_eta=float(np.nanmax(cols["eta"])),
-                steps=int(cols["step"][-1]), rows=len(cols["step"]), state_digest=last)
+                steps=int(cols["step"][-1]), rows=len(cols["step"]), state_digest=last, build=build_of(work))
 
 
 def read_tests(path):

@@ -26,6 +26,8 @@ samples17="${3:-}"
 tests="${4:-$experiment/tests.csv}"
 configs="$here/apps/triaxial/configs"
 mkdir -p "$work"
+# The build, for compare.py's tests.csv: the commit of the checkout the binary is built in, or as set.
+[ -e "$work/BUILD.txt" ] || { git -C "$(dirname "$triaxial")" rev-parse HEAD 2>/dev/null || echo unknown; } > "$work/BUILD.txt"
 
 narrow() { sed "s/^p0 = .*/p0 = [$2]/; s/^path = .*/path = [\"constant_p\"]/; s/^b = .*/b = [$3]/; s/^parallel = .*/parallel = 1/" "$1"; }
 seeded() { sed "s/^seed = .*/seed = $2/" "$configs/$1.toml"; }
