@@ -27,6 +27,7 @@ std::string_view component_name(Component c) {
     case Component::pair_constants: return "pair_constants";
     case Component::halo: return "halo";
     case Component::stress: return "stress";
+    case Component::stress_blocks: return "stress_blocks";
     case Component::count: break;
   }
   return "unknown";

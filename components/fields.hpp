@@ -37,6 +37,7 @@ enum class Component : std::uint8_t {
   pair_constants,
   stress,  // the homogenizer's measured stress, read by the servo in the same step
   halo,    // the owner partition's copies across its shares (systems/halo.hpp)
+  stress_blocks,  // the contact pass's per-block sums of f (x) r, read by the homogenizer on servo steps
   count
 };
 inline constexpr std::size_t k_component_count = static_cast<std::size_t>(Component::count);

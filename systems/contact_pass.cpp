@@ -4,6 +4,7 @@
 #include "systems/laws/normal_laws.hpp"
 #include "systems/laws/rolling.hpp"
 #include "systems/halo.hpp"
+#include "systems/homogenizer.hpp"
 #include "systems/integrate.hpp"
 #include "systems/pair_list.hpp"
 
@@ -60,6 +61,7 @@ constexpr bool k_sanitized = false;
 #endif
 
 constexpr std::size_t k_block = 64;
+static_assert(StressBlocks::k_stress_block == k_block, "the stress is summed per block of the pass");
 static_assert(k_contact_grain % k_block == 0, "blocks must not straddle parallel chunks");
 static_assert(k_block < 256, "phase 3 keeps the visiting order as byte offsets");
 
@@ -114,6 +116,7 @@ struct PassData {
   double dt;                   // s
   double v_char;               // m/s, for the laws that have one
   double* __restrict hist_a = nullptr;  // m, the contact radius at the last step (laws with radius_history)
+  double* __restrict stress_blocks = nullptr;  // N m, StressBlocks::sum on servo steps; else none
 };
 
 // The affine term of the relative velocity, a template argument so that each cell pays only its own:
@@ -191,6 +194,13 @@ PassData bind_pass(const Model& model, State& state, Scratch& scratch) {
   d.gx = d.x;
   d.gv = d.v;
   d.gw = d.w;
+  if (servo_due(model.servo, state.clock.step)) {  // the homogenizer measures after this pass
+    StressBlocks& blocks = scratch.write<StressBlocks>();
+    blocks.sum.resize(9 * ((m + k_block - 1) / k_block));
+    blocks.step = state.clock.step;
+    blocks.pairs = m;
+    d.stress_blocks = blocks.sum.data();
+  }
   if (state.contacts.has_tangential_radius) {  // contact_tangential's access was taken above
     state.contacts.tangential_radius.resize(m);
     d.hist_a = state.contacts.tangential_radius.data();
@@ -606,6 +616,44 @@ struct ContactKernel {
       phase3<G>(blk, k0, nb, in_array_order, changed);
     }
     d.stale[index] = changed != 0;
+    if (d.stress_blocks) stress_of_block(blk, k0, nb);
+  }
+
+  // The block's sum of f (x) r for the homogenizer (StressBlocks says in what order). The forces
+  // were just written (L1); r is the branch vector of phase 1, as the homogenizer computed it
+  // (x_i - x_j - H n). An open pair adds zeros.
+  // With the lanes, four pairs at a time in the lanes of AVX2 registers (the forces as x, y, z
+  // lanes): lane l is partial sum l, so the operations are the scalar loop's.
+  void stress_of_block(const Block& blk, std::size_t k0, std::size_t nb) const {
+    double acc[9][4] = {};
+    std::size_t t = 0;
+#if defined(SANDCELL_LANES)
+    if constexpr (k_lanes) {
+      V s[9] = {};
+      for (; t + 4 <= nb; t += 4) {
+        V f[3], r[3];
+        load_xyz(d.force + k0 + t, f[0], f[1], f[2]);
+        std::memcpy(&r[0], blk.rx + t, sizeof(V));
+        std::memcpy(&r[1], blk.ry + t, sizeof(V));
+        std::memcpy(&r[2], blk.rz + t, sizeof(V));
+        for (int a = 0; a < 3; ++a)
+          for (int b = 0; b < 3; ++b) s[3 * a + b] += f[a] * r[b];
+      }
+      for (int c = 0; c < 9; ++c)
+        for (int l = 0; l < 4; ++l) acc[c][l] = s[c][l];
+    }
+#endif
+    const auto add = [&](std::size_t u, std::size_t l) {
+      const Vec3& f = d.force[k0 + u];
+      const double r[3] = {blk.rx[u], blk.ry[u], blk.rz[u]};
+      for (int a = 0; a < 3; ++a)
+        for (int b = 0; b < 3; ++b) acc[3 * a + b][l] += f[a] * r[b];
+    };
+    for (; t + 4 <= nb; t += 4)
+      for (std::size_t l = 0; l < 4; ++l) add(t + l, l);
+    for (; t < nb; ++t) add(t, t & 3);
+    double* __restrict out = d.stress_blocks + 9 * (k0 / k_block);
+    for (int c = 0; c < 9; ++c) out[c] = (acc[c][0] + acc[c][1]) + (acc[c][2] + acc[c][3]);
   }
 
   void chunk(std::size_t b, std::size_t e) const {

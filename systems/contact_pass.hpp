@@ -36,7 +36,7 @@ struct ContactPass {
                Component::cell, Component::pair_constants, Component::gather_index});
   static constexpr ComponentMask writes =
       mask_of({Component::contact_forces, Component::contact_tangential, Component::contact_rolling,
-               Component::halo});
+               Component::halo, Component::stress_blocks});
   static void run(const Model& model, State& state, Scratch& scratch, Executor& exec);
   /// Checks the laws' names and parameters (std::invalid_argument naming the key); allocates the
   /// rolling history only for the rolling laws that keep one (epsd2, epsd).
@@ -65,6 +65,21 @@ struct ContactScratch {
   std::vector<std::uint8_t> stale;            // (blocks) -, 1: a regime in the block changed, sort it again
   std::vector<std::uint8_t> sorted;  // (blocks) -, 1: visit in `order`; 0: all touching, none capped: array order
   std::uint64_t generation = ~std::uint64_t{0};  // -, PairConstants::generation the regimes describe
+};
+
+/// On the steps the homogenizer measures the stress (servo_due), the contact pass sums f (x) r over
+/// each block of k_stress_block pairs from the branch vectors and forces it has in hand, and the
+/// homogenizer adds the blocks in order (scratch component `stress_blocks`): the pairs are not read
+/// a second time. Each block's sum is in array order, pair t into partial sum t % 4, the four
+/// combined as (0 + 1) + (2 + 3): the same operations in every build and for any visiting order,
+/// so the same bits for any thread count and partition. Allocated on the first servo step: a run
+/// without a servo has none.
+struct StressBlocks {
+  static constexpr Component component = Component::stress_blocks;
+  static constexpr std::size_t k_stress_block = 64;  // pairs per block (the pass's blocks)
+  std::vector<double> sum;                           // (9 per block) N m, sum of f_a r_b, a-major
+  std::uint64_t step = ~std::uint64_t{0};            // -, clock step they were summed at (none: max)
+  std::size_t pairs = 0;                             // -, pairs of that pass
 };
 
 /// Pairs per parallel_for chunk for per-contact loops (1024: ~76 chunks on the 20k benchmark, so

@@ -3,11 +3,14 @@
 #include "systems/contact_pass.hpp"
 #include "systems/stress.hpp"
 
+#include "engine/assert.hpp"
+
 #include <Eigen/Eigenvalues>
 
 #include <algorithm>
 #include <cmath>
 #include <numbers>
+#include <string>
 #include <vector>
 
 namespace sandcell {
@@ -30,11 +33,27 @@ Mat3 kinetic_sum(const std::vector<Vec3>& v, const std::vector<double>& m, Execu
 
 void Homogenizer::run(const Model& model, State& state, Scratch& scratch, Executor& exec) {
   if (!servo_due(model.servo, state.clock.step)) return;
-  const auto& x = state.read<Component::particle_position>();
-  const ContactPairs& pairs = state.read<Component::contact_pairs>();
-  const ContactForces& forces = state.read<Component::contact_forces>();
   const Cell& cell = state.read<Component::cell>();
-  Mat3 sum = contact_stress_sum(pairs, forces.force, x, cell, exec);
+  Mat3 sum = Mat3::Zero();
+  if (model.contact.enabled) {  // the contact pass of this step summed f (x) r per block
+    const StressBlocks& blocks = scratch.read<StressBlocks>();
+    SANDCELL_CHECK(blocks.step == state.clock.step,
+                   "homogenizer: the contact pass summed no stress at step " + std::to_string(state.clock.step) +
+                       " (it must run before the homogenizer in the same step)");
+    const std::size_t n_blocks = (blocks.pairs + StressBlocks::k_stress_block - 1) / StressBlocks::k_stress_block;
+    const double* s = blocks.sum.data();
+    sum = exec.deterministic_reduce(
+        n_blocks, 256, Mat3(Mat3::Zero()),
+        [s](std::size_t b, std::size_t e) {
+          double t[9] = {};  // in registers, block after block in order
+          for (std::size_t k = b; k < e; ++k)
+            for (int c = 0; c < 9; ++c) t[c] += s[9 * k + c];
+          Mat3 m;
+          m << t[0], t[1], t[2], t[3], t[4], t[5], t[6], t[7], t[8];  // row a: f_a r_b
+          return m;
+        },
+        [](const Mat3& a, const Mat3& b) { return Mat3(a + b); });
+  }
   if (model.servo.kinetic_stress)
     sum += kinetic_sum(state.read<Component::particle_velocity>(), state.read<Component::particle_mass>(), exec);
   MeasuredStress& out = scratch.write<MeasuredStress>();

@@ -6,8 +6,11 @@
 // (clock.step % servo.interval == 0): the symmetrized Love-Weber stress
 //   S = (1/V) sum_c f_c (x) r_c  [+ (1/V) sum_p m v~ (x) v~ when servo.kinetic_stress],
 // compression positive, into the MeasuredStress scratch. It is scheduled only when the servo is.
-// Reads positions, the pair list, contact forces, the cell (and velocities and masses for the
-// kinetic part); writes the `stress` scratch component. Deterministic reduction with fixed grain.
+// The contact part comes from the contact pass of the same step, which sums f (x) r per block of
+// 64 pairs with the branch vectors and forces in hand (StressBlocks, systems/contact_pass.hpp); the
+// homogenizer adds the blocks in order (a deterministic reduction with fixed grain). Reads those
+// sums and the cell (and velocities and masses for the kinetic part); writes the `stress` scratch
+// component. measure() sums the pairs itself (contact_stress_sum): the same stress to round-off.
 //
 // measure() computes every derived quantity, outside the step, on the steps an output needs them;
 // its tensor measures (strain tensor, principal directions, alpha, non-coaxiality) are the pure
@@ -32,9 +35,8 @@ struct MeasuredStress {
 
 struct Homogenizer {
   static constexpr std::string_view name = "homogenizer";
-  static constexpr ComponentMask reads =
-      mask_of({Component::particle_position, Component::particle_velocity, Component::particle_mass,
-               Component::contact_pairs, Component::contact_forces, Component::cell});
+  static constexpr ComponentMask reads = mask_of(
+      {Component::particle_velocity, Component::particle_mass, Component::stress_blocks, Component::cell});
   static constexpr ComponentMask writes = mask_of({Component::stress});
   static void run(const Model& model, State& state, Scratch& scratch, Executor& exec);
 };

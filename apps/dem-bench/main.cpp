@@ -36,6 +36,7 @@
 #include "systems/broadphase.hpp"
 #include "systems/catalogue.hpp"
 #include "systems/force_gather.hpp"
+#include "systems/homogenizer.hpp"
 #include "systems/stress.hpp"
 
 #include "probe.hpp"
@@ -566,6 +567,16 @@ static int bench_main(int argc, char** argv) {
   const std::uint64_t builds = list_builds(world.scratch()) - builds0;
   const auto& graph = world.graph();
   const unsigned long long digest = state_digest(world.state());
+  // With --servo, the bits of the stress the servo read last (the contact pass's block sums): the
+  // servo holds the cell, so the state digest does not see them.
+  std::string servo_stress = "none";
+  if (model.servo.enabled) {
+    Fnv1a f;
+    f.bytes(world.scratch().own<MeasuredStress>().stress.data(), sizeof(double) * 9);
+    char hex[17];
+    std::snprintf(hex, sizeof hex, "%016llx", static_cast<unsigned long long>(f.h));
+    servo_stress = hex;
+  }
   const PartitionSteps& ps = world.executor().partition_steps();
   const GatherTrials& gt = world.scratch().own<GatherTrials>();  // counts from the world's setup on
   const std::string partition_used{serial ? std::string_view("serial") : partition_name(partition)};
@@ -577,6 +588,7 @@ static int bench_main(int argc, char** argv) {
         " \"contacts_per_particle_start\": %.6f, \"contacts_per_particle\": %.6f, \"rebuilds\": %llu,\n"
         " \"peak_mib\": %.1f, \"mean_stress_start_pa\": %.6e, \"mean_stress_pa\": %.6e,\n"
         " \"stress_pa\": [%.6e, %.6e, %.6e, %.6e, %.6e, %.6e], \"lz\": %.9f, \"digest\": \"%016llx\",\n"
+        " \"servo_stress_digest\": \"%s\","
         " \"time_step\": \"%s\", \"dt_s\": %.9e, \"simulated_s\": %.9e,\n"
         " \"partition\": \"%s\", \"partition_steps\": {\"owner\": %llu, \"dynamic\": %llu, \"switches\": %llu, "
         "\"trials\": %llu},\n"
@@ -585,7 +597,7 @@ static int bench_main(int argc, char** argv) {
         scene.c_str(), std::string(build_arch()).c_str(), n, steps, world.executor().threads(),
         serial ? "serial" : "tbb", deform, drive.shear, model.contact.liggghts_compat ? "true" : "false", wall, rate, 2.0 * c0 / n,
         2.0 * c1 / n, static_cast<unsigned long long>(builds), peak_mib, s0.trace() / 3, s1.trace() / 3, s1(0, 0),
-        s1(1, 1), s1(2, 2), s1(0, 1), s1(0, 2), s1(1, 2), world.state().cell.length[2], digest,
+        s1(1, 1), s1(2, 2), s1(0, 1), s1(0, 2), s1(1, 2), world.state().cell.length[2], digest, servo_stress.c_str(),
         model.time_step.rule == TimeStepRule::stiffness ? "stiffness" : "fixed", world.model().dt,
         world.state().clock.time, partition_used.c_str(),
         static_cast<unsigned long long>(ps.owner), static_cast<unsigned long long>(ps.dynamic),
@@ -627,6 +639,7 @@ static int bench_main(int argc, char** argv) {
   std::printf("stress (MPa)     xx %.6g yy %.6g zz %.6g xy %.4g xz %.4g yz %.4g\n", s1(0, 0) / 1e6, s1(1, 1) / 1e6,
               s1(2, 2) / 1e6, s1(0, 1) / 1e6, s1(0, 2) / 1e6, s1(1, 2) / 1e6);
   std::printf("state digest     %016llx (FNV-1a of the final state; equal digests = bitwise equal runs)\n", digest);
+  if (model.servo.enabled) std::printf("servo stress     %s (FNV-1a of the stress the servo read last)\n", servo_stress.c_str());
   std::printf("time per system (share of the step loop):\n");
   for (std::size_t k = 0; k < graph.size(); ++k)
     std::printf("  %-18s %8.3f s  %5.1f %%\n", graph.system(k).name.c_str(), graph.timers()[k],

@@ -7,18 +7,23 @@
 # builds. What makes them agree: no fused multiply-add in either, no reassociation (no
 # -ffast-math), and IEEE sqrt and division, correctly rounded at any width.
 function(arch_digest out bench)
-  execute_process(COMMAND "${bench}" ${ARGN} --steps 60 --threads 2 --deform 0.9391 --json
+  execute_process(COMMAND "${bench}" --steps 60 --threads 2 ${ARGN} --json
                   RESULT_VARIABLE code OUTPUT_VARIABLE json ERROR_VARIABLE err)
   if(NOT code EQUAL 0)
     message(FATAL_ERROR "${bench} ${ARGN} exited ${code}: ${err}")
   endif()
   string(JSON digest GET "${json}" digest)
+  string(JSON servo GET "${json}" servo_stress_digest)
+  string(APPEND digest " servo ${servo}")
   string(JSON arch GET "${json}" arch)
   set(${out} "${digest}" PARENT_SCOPE)
   set(${out}_arch "${arch}" PARENT_SCOPE)
 endfunction()
-foreach(label "--rolling epsd2" "--rolling none" "--rolling epsd" "--rolling cdt" "--tangential incremental"
-              "--compat")
+# Scene B for the laws; scene A with the servo (which holds the cell) for the stress the contact pass
+# sums per block for it, compared by the bits of the servo's last stress.
+foreach(label "--deform 0.9391 --rolling epsd2" "--deform 0.9391 --rolling none" "--deform 0.9391 --rolling epsd"
+              "--deform 0.9391 --rolling cdt" "--deform 0.9391 --tangential incremental" "--deform 0.9391 --compat"
+              "--servo")
   separate_arguments(args UNIX_COMMAND "${label}")
   arch_digest(built "${BENCH}" ${args})
   arch_digest(portable "${PORTABLE}" ${args})
