@@ -99,9 +99,25 @@ const Sample& compressed(double p0) {
     v.max_rate = 20.0;
     v.gain = 200.0;
     World world(s.model, std::move(s.state), systems_for(s.model), ExecutorConfig{Backend::tbb, 2});
-    world.step(40000);
-    const Measures m = measure(world.model(), world.state(), world.executor());
-    for (int k = 0; k < 3; ++k) REQUIRE(std::abs(m.stress(k, k) - p0) < 0.01 * p0);  // test_servo.cpp's criterion
+    // Compressed until every normal stress has been within 1 % of p0 (test_servo.cpp's criterion)
+    // at ten checks 1,000 steps apart. Not a fixed step count: this 216-sphere sample, loaded from a
+    // loose cloud, buckles on the way (two axes fall to a few kPa from about step 19,000 to 37,000
+    // while the third holds p0, then it re-jams: seen with the builds before and after the stress
+    // was summed in the contact pass), and where a fixed count (40,000 before) ends relative to that
+    // depends on the last bits of the trajectory. Ten, not three: a sample held for three checks
+    // had only just re-jammed and lost its axis-3 stress in the cyclic test's first cycle.
+    const auto within = [&] {
+      const Measures m = measure(world.model(), world.state(), world.executor());
+      bool ok = true;
+      for (int k = 0; k < 3; ++k) ok = ok && std::abs(m.stress(k, k) - p0) < 0.01 * p0;
+      return ok;
+    };
+    int held = 0;
+    for (int chunk = 0; chunk < 100 && held < 10; ++chunk) {
+      world.step(1000);
+      held = within() ? held + 1 : 0;
+    }
+    REQUIRE(held == 10);
     s.state = world.state();
     s.state.cell.length0 = s.state.cell.length;
     s.state.clock = {};
@@ -162,21 +178,26 @@ TEST_CASE("undrained path: eps_v stays 0 while the sample is sheared at constant
   s.model.servo.custom = undrained_path(2.0);
   s.model.servo.interval = 5;
   World world(s.model, s.state, systems_for(s.model), ExecutorConfig{Backend::tbb, 2}, false);
-  double worst = 0.0;
+  double worst = 0.0, peak_q = 0.0;
   Measures m;
   for (int k = 0; k < 30; ++k) {
     world.step(1000);
     m = measure(world.model(), world.state(), world.executor());
     worst = std::max(worst, std::abs(m.eps_v));
+    peak_q = std::max(peak_q, m.inv.q);
   }
-  MESSAGE("undrained: eps1 = ", m.strain[0], ", worst |eps_v| = ", worst, ", p = ", m.inv.p, ", q = ", m.inv.q);
+  MESSAGE("undrained: eps1 = ", m.strain[0], ", worst |eps_v| = ", worst, ", p = ", m.inv.p, ", q = ", m.inv.q,
+          ", peak q = ", peak_q);
   REQUIRE(m.strain[0] > 0.01);  // it was sheared (2/s for 30000 dt)
   // Between updates the volume axes hold V exactly up to rounding (the test above); the measured
   // eps_v = sum ln(L0/L) adds the rounding of three logarithms: 1e-12 is far above both, and far
   // below the 1e-4 a lateral rate 1 % off would give at this strain.
   CHECK(worst < 1e-12);
   CHECK(m.strain[1] == doctest::Approx(m.strain[2]).epsilon(1e-12));  // axisymmetric: one lateral rate
-  CHECK(m.inv.q > 0.05 * p0);                                         // compression loads axis 1: a deviator builds up
+  // Compression loads axis 1: a deviator builds up. This sample is loose (compressed from a cloud),
+  // so at constant volume it may then lose p and q (static liquefaction, as loose sand does
+  // undrained): the peak, not the end, shows the loading.
+  CHECK(peak_q > 0.05 * p0);
 }
 
 TEST_CASE("cyclic path: strain-controlled cycles reverse at the bounds and finish after the count") {
