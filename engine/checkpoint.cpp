@@ -7,8 +7,12 @@
 #include <algorithm>
 #include <cerrno>
 #include <cmath>
+#include <cstdio>
 #include <cstring>
 #include <stdexcept>
+#include <string_view>
+#include <utility>
+#include <vector>
 
 namespace sandcell {
 
@@ -179,6 +183,79 @@ void write_contents(h5::File& file, const State& state, const CheckpointExtra& e
 
 // An upper bound of a checkpoint's size: every registry array at most 3 doubles an element (24
 // bytes) in 11 particle and 10 contact arrays, the extras, and 1 MiB of HDF5 metadata.
+namespace {
+
+// A checkpoint's bytes after its first k_userblock are digested (FNV-1a) once it is written, and the
+// digest is written into those first bytes, which HDF5 reserves as a user block and never reads.
+// read_checkpoint checks the digest before HDF5 parses the file: HDF5 1.10's reader can crash on a
+// corrupted file (a double free while releasing a damaged link table in H5G__dense_iterate, found
+// by tests/robustness/corrupt_checkpoint.py), and a flipped bit must stop a run with an error naming
+// the file, never a signal. A checkpoint written before has no such header and is read as before.
+constexpr std::size_t k_userblock = 512;
+constexpr std::string_view k_seal = "sandcell checkpoint fnv1a64 ";
+
+// FNV-1a of the file's bytes from k_userblock to its end, and their count.
+std::pair<std::uint64_t, std::uint64_t> digest_after_userblock(std::FILE* f, const std::filesystem::path& path) {
+  if (std::fseek(f, static_cast<long>(k_userblock), SEEK_SET) != 0)
+    throw std::runtime_error(path.string() + ": cannot seek past the checkpoint's header");
+  Fnv1a h;
+  std::uint64_t count = 0;
+  std::vector<unsigned char> buffer(1 << 20);
+  for (std::size_t got; (got = std::fread(buffer.data(), 1, buffer.size(), f)) > 0;) {
+    h.bytes(buffer.data(), got);
+    count += got;
+  }
+  if (std::ferror(f)) throw std::runtime_error(path.string() + ": cannot read the checkpoint back");
+  return {h.h, count};
+}
+
+// Writes the digest of a just-closed checkpoint into its user block.
+void seal(const std::filesystem::path& path) {
+  std::FILE* f = std::fopen(path.c_str(), "r+b");
+  if (!f) throw std::runtime_error(path.string() + ": cannot reopen the checkpoint to seal it");
+  try {
+    const auto [digest, count] = digest_after_userblock(f, path);
+    std::string header = std::string(k_seal) + hex_digest(digest) + " " + std::to_string(count) + "\n";
+    header.resize(k_userblock, '\0');
+    if (std::fseek(f, 0, SEEK_SET) != 0 || std::fwrite(header.data(), 1, header.size(), f) != header.size() ||
+        std::fflush(f) != 0)
+      throw std::runtime_error(path.string() + ": cannot write the checkpoint's header");
+  } catch (...) {
+    std::fclose(f);
+    throw;
+  }
+  if (std::fclose(f) != 0) throw std::runtime_error(path.string() + ": cannot close the sealed checkpoint");
+}
+
+// Throws, naming the file, when a sealed checkpoint's bytes do not match its digest. An unsealed
+// file (no header: written before, or not a checkpoint) is left to HDF5 and the checks after it.
+void check_seal(const std::filesystem::path& path) {
+  std::FILE* f = std::fopen(path.c_str(), "rb");
+  if (!f) return;  // File::open says why
+  std::string header(k_userblock, '\0');
+  const bool sealed = std::fread(header.data(), 1, header.size(), f) == header.size() &&
+                      header.compare(0, k_seal.size(), k_seal) == 0;
+  if (!sealed) {
+    std::fclose(f);
+    return;
+  }
+  std::pair<std::uint64_t, std::uint64_t> actual;
+  try {
+    actual = digest_after_userblock(f, path);
+  } catch (...) {
+    std::fclose(f);
+    throw;
+  }
+  std::fclose(f);
+  const std::string recorded = header.substr(k_seal.size(), header.find('\n') - k_seal.size());
+  const std::string found = hex_digest(actual.first) + " " + std::to_string(actual.second);
+  if (recorded != found)
+    throw std::runtime_error(path.string() + ": corrupted checkpoint: its bytes do not match the digest written with "
+                             "them (fnv1a64 and size " + recorded.substr(0, 40) + " recorded, " + found + " read)");
+}
+
+}  // namespace
+
 static std::uint64_t checkpoint_bytes(const State& state, const CheckpointExtra& extra) {
   std::uint64_t bytes = (1u << 20) + 24u * 11u * state.particles.size() + 24u * 10u * state.contacts.size();
   for (const auto& kv : extra.doubles) bytes += 8 * kv.second.size() + 256;
@@ -201,7 +278,7 @@ void write_checkpoint(const std::filesystem::path& path, const State& state, con
     // A full disk is found before HDF5 writes (it may crash closing a file whose write failed);
     // a write that fails anyway leaves the file unclosed and removed.
     io::require_free_space(tmp, checkpoint_bytes(state, extra));
-    h5::File file = h5::File::create(tmp);
+    h5::File file = h5::File::create(tmp, k_userblock);
     try {
       write_contents(file, state, extra);
       file.flush();
@@ -210,6 +287,7 @@ void write_checkpoint(const std::filesystem::path& path, const State& state, con
       file.abandon();
       throw;
     }
+    seal(tmp);
   } catch (const std::exception& e) {
     const int cause = errno;  // of the failed write, when the system said why
     std::filesystem::remove(tmp, ec);
@@ -224,6 +302,7 @@ void write_checkpoint(const std::filesystem::path& path, const State& state, con
 }
 
 State read_checkpoint(const std::filesystem::path& path, CheckpointExtra* extra) {
+  check_seal(path);
   const h5::File file = h5::File::open(path, h5::File::Mode::read);
   State state;
   {

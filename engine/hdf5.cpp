@@ -395,10 +395,13 @@ Handle access_properties(const std::string& path) {
 }
 }  // namespace
 
-File File::create(const std::filesystem::path& path) {
+File File::create(const std::filesystem::path& path, std::size_t userblock) {
   silence_hdf5();
   Handle fapl = access_properties(path.string());
-  Handle f(H5Fcreate(path.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, fapl.get()));
+  Handle fcpl(H5Pcreate(H5P_FILE_CREATE));
+  if (!fcpl.valid() || (userblock > 0 && H5Pset_userblock(fcpl.get(), userblock) < 0))
+    throw_error(path.string(), "", "cannot reserve a user block of " + std::to_string(userblock) + " bytes");
+  Handle f(H5Fcreate(path.c_str(), H5F_ACC_TRUNC, fcpl.get(), fapl.get()));
   if (!f.valid()) throw_error(path.string(), "", "cannot create the file");
   return File(std::move(f), path);
 }

@@ -200,8 +200,9 @@ class Group : public Node {
 class File {
  public:
   enum class Mode { read, read_write };
-  /// Creates (truncates) a file.
-  static File create(const std::filesystem::path& path);
+  /// Creates (truncates) a file. `userblock`: bytes reserved at its start that HDF5 neither writes
+  /// nor reads (0, or a power of two >= 512), for the caller's own header.
+  static File create(const std::filesystem::path& path, std::size_t userblock = 0);
   /// Creates a file in memory only (HDF5's core driver, no backing store); image() returns its bytes.
   /// `path` names it in messages.
   static File create_in_memory(const std::filesystem::path& path);

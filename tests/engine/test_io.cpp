@@ -150,6 +150,25 @@ std::string thrown_message(Fn&& fn) {
   return "(nothing thrown)";
 }
 
+// Flips bit `bit` of byte `offset` of a file.
+void flip_bit(const fs::path& path, std::uintmax_t offset, int bit) {
+  std::fstream f(path, std::ios::in | std::ios::out | std::ios::binary);
+  f.seekg(static_cast<std::streamoff>(offset));
+  char c = 0;
+  f.get(c);
+  c = static_cast<char>(c ^ (1 << bit));
+  f.seekp(static_cast<std::streamoff>(offset));
+  f.put(c);
+}
+
+// Zeroes a checkpoint's 512-byte header (its seal): what a checkpoint written before the seal, or
+// edited in place as below, looks like to read_checkpoint.
+void unseal(const fs::path& path) {
+  std::fstream f(path, std::ios::in | std::ios::out | std::ios::binary);
+  const std::string zeros(512, '\0');
+  f.write(zeros.data(), static_cast<std::streamsize>(zeros.size()));
+}
+
 }  // namespace
 
 TEST_CASE("checkpoint round trip is bitwise for a stepped packing with contact and rolling history") {
@@ -310,6 +329,7 @@ TEST_CASE("reading a missing, garbage, foreign or mismatched checkpoint throws n
     f.root().set_value<std::int64_t>("schema_version", k_checkpoint_schema + 1);
     f.close();
   }
+  unseal(ckpt);  // edited in place: as if another writer had made it, without the seal
   msg = thrown_message([&] { read_checkpoint(ckpt); });
   CHECK(msg.find(ckpt.string()) != std::string::npos);
   CHECK(msg.find("schema version " + std::to_string(k_checkpoint_schema + 1)) != std::string::npos);
@@ -320,6 +340,7 @@ TEST_CASE("reading a missing, garbage, foreign or mismatched checkpoint throws n
     f.root().open_group("particles").remove("angular_velocity");
     f.close();
   }
+  unseal(ckpt);
   msg = thrown_message([&] { read_checkpoint(ckpt); });
   CHECK(msg.find(ckpt.string()) != std::string::npos);
   CHECK(msg.find("angular_velocity") != std::string::npos);
@@ -336,9 +357,52 @@ TEST_CASE("reading a missing, garbage, foreign or mismatched checkpoint throws n
     p = h5::Group();
     f.close();
   }
+  unseal(ckpt);
   msg = thrown_message([&] { read_checkpoint(ckpt); });
   CHECK(msg.find("/particles/id") != std::string::npos);
   CHECK(msg.find("uint32") != std::string::npos);
+}
+
+TEST_CASE("a checkpoint is sealed: a flipped bit after its header stops the read naming the file, before HDF5 parses it") {
+  // write_checkpoint digests the file's bytes after a 512-byte user block into that block;
+  // read_checkpoint checks them first, because HDF5's reader can crash on a damaged file
+  // (tests/robustness/corrupt_checkpoint.py found a double free). An unsealed file (zero header:
+  // written before the seal) is still read, through HDF5's checks alone.
+  TempDir dir("seal");
+  const Model model = packing_model();
+  const State state = packing_state(model);
+  const fs::path ckpt = dir.path / "ckpt.h5";
+  write_checkpoint(ckpt, state);
+  const std::uintmax_t size = fs::file_size(ckpt);
+  REQUIRE(size > 4096);
+  CHECK(read_checkpoint(ckpt).particles.position == state.particles.position);
+  {
+    std::ifstream f(ckpt, std::ios::binary);
+    std::string head(28, '\0');
+    f.read(head.data(), 28);
+    CHECK(head == "sandcell checkpoint fnv1a64 ");
+  }
+  // Flips after the header, in HDF5's superblock, metadata and the last byte: each one refused.
+  for (const std::uintmax_t offset : {std::uintmax_t{512}, std::uintmax_t{600}, size / 3, size / 2, size - 1}) {
+    CAPTURE(offset);
+    write_checkpoint(ckpt, state);
+    flip_bit(ckpt, offset, 3);
+    const std::string msg = thrown_message([&] { read_checkpoint(ckpt); });
+    CHECK(msg.find(ckpt.string()) != std::string::npos);
+    CHECK(msg.find("corrupted checkpoint") != std::string::npos);
+  }
+  // A flip in the recorded digest is refused too.
+  write_checkpoint(ckpt, state);
+  flip_bit(ckpt, 30, 0);
+  CHECK(thrown_message([&] { read_checkpoint(ckpt); }).find("corrupted checkpoint") != std::string::npos);
+  // A file cut short: refused by the digest's byte count.
+  write_checkpoint(ckpt, state);
+  fs::resize_file(ckpt, size - 100);
+  CHECK(thrown_message([&] { read_checkpoint(ckpt); }).find("corrupted checkpoint") != std::string::npos);
+  // Unsealed (a checkpoint written before the seal): read as before, the same state.
+  write_checkpoint(ckpt, state);
+  unseal(ckpt);
+  CHECK(read_checkpoint(ckpt).particles.position == state.particles.position);
 }
 
 TEST_CASE("results series: append and flush survive a killed writer, reopen cuts back to the checkpoint step") {
