@@ -16,7 +16,8 @@ Measures: over the last 0.1 of eps_q (the decisive experiment's analyze.one_test
 eps_q = 0.02; the peak q/p; the steps taken.
 
 Criterion, fixed in README.md before any of these tests finished (as experiments/2026-11-28-stiffness-step's):
-- only pairs where both tests held their path (the watchdog's done) to eps_q = 0.5 enter;
+- only pairs where both tests held their path (the watchdog's done) to eps_q = 0.5 enter, both run by
+  one build (tests.csv's build: the same sample bits);
 - D = the mean over seeds of (faster - paper), SE_D = SD of the paired differences / sqrt(n);
 - s = the sample SD over seeds of the paper-protocol tests;
 - "within the seed scatter" when |D| + 2 SE_D <= s; "beyond" when |D| - 2 SE_D > s; else "not shown".
@@ -112,7 +113,8 @@ def main(argv=None):
         for seed in SEEDS:
             ref = tests.get(("paper", seed, p0, b))
             fast = tests.get(("paper-faster", seed, p0, b))
-            if ref and fast and ref["ok"] and fast["ok"]:
+            # One build's pair: another build's stress sums round otherwise, so its sample is another.
+            if ref and fast and ref["ok"] and fast["ok"] and ref["build"] == fast["build"]:
                 pairs.append((seed, ref, fast))
         for m in MEASURES:
             n = len(pairs)

@@ -26,8 +26,9 @@ samples17="${3:-}"
 tests="${4:-$experiment/tests.csv}"
 configs="$here/apps/triaxial/configs"
 mkdir -p "$work"
-# The build, for compare.py's tests.csv: the commit of the checkout the binary is built in, or as set.
-[ -e "$work/BUILD.txt" ] || { git -C "$(dirname "$triaxial")" rev-parse HEAD 2>/dev/null || echo unknown; } > "$work/BUILD.txt"
+# The build, for compare.py's tests.csv: the commit of the checkout the binary is built in (uncommitted
+# engine changes are not seen: run from a clean checkout).
+{ git -C "$(dirname "$triaxial")" rev-parse HEAD 2>/dev/null || echo unknown; } > "$work/BUILD.txt"
 
 narrow() { sed "s/^p0 = .*/p0 = [$2]/; s/^path = .*/path = [\"constant_p\"]/; s/^b = .*/b = [$3]/; s/^parallel = .*/parallel = 1/" "$1"; }
 seeded() { sed "s/^seed = .*/seed = $2/" "$configs/$1.toml"; }
@@ -39,8 +40,10 @@ run() {  # run DIR CONFIG_TEXT THREADS [ARGS...]: one job, resumable, its log in
   "$triaxial" "$dir.toml" --out "$dir" --threads "$threads" --resume "$@" >> "$dir.log" 2>&1 ||
     { echo "failed: $dir (see $dir.log)"; return 1; }
 }
-# measured PROTOCOL SEED P0TAG BTAG: whether TESTS holds that test, done on its path to the end.
-measured() { [ -e "$tests" ] && grep -q "^$1,$2,$3,$4,done,True," "$tests"; }
+# measured PROTOCOL SEED P0TAG BTAG: whether TESTS holds that test, done on its path to the end, by
+# this build (a pair pairs one build's tests: another build's preparation makes other bits).
+build="$(head -n1 "$work/BUILD.txt")"
+measured() { [ -e "$tests" ] && grep -q "^$1,$2,$3,$4,done,True,.*,$build\$" "$tests"; }
 # shear NAME SEED PROTOCOL P0 B: a constant-p test on seed SEED's prepared sample.
 shear() {
   local dir="$work/$1" tag="p0_$(awk "BEGIN{print $4/1e3}")kPa"
