@@ -573,9 +573,7 @@ static int bench_main(int argc, char** argv) {
   if (model.servo.enabled) {
     Fnv1a f;
     f.bytes(world.scratch().own<MeasuredStress>().stress.data(), sizeof(double) * 9);
-    char hex[17];
-    std::snprintf(hex, sizeof hex, "%016llx", static_cast<unsigned long long>(f.h));
-    servo_stress = hex;
+    servo_stress = hex_digest(f.h);
   }
   const PartitionSteps& ps = world.executor().partition_steps();
   const GatherTrials& gt = world.scratch().own<GatherTrials>();  // counts from the world's setup on
