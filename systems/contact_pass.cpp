@@ -215,6 +215,46 @@ PassData bind_pass(const Model& model, State& state, Scratch& scratch) {
 }
 
 // The pass over one chunk of pairs, block by block, with the laws composed at compile time.
+// The block's sum of f (x) r for the homogenizer (StressBlocks says in what order). The forces were
+// just written (L1); r is the branch vector of phase 1, as the homogenizer computed it
+// (x_i - x_j - H n). An open pair adds zeros.
+// With the lanes, four pairs at a time in the lanes of AVX2 registers (the forces as x, y, z lanes):
+// lane l is partial sum l, so the operations are the scalar loop's. Outside the kernel, whose every
+// instantiation would otherwise compile its own copy (the stepping pass inlines it: `flatten`).
+template <bool Lanes>
+void stress_of_block(const PassData& d, const Block& blk, std::size_t k0, std::size_t nb) {
+  double acc[9][4] = {};
+  std::size_t t = 0;
+#if defined(SANDCELL_LANES)
+  if constexpr (Lanes) {
+    using V = lanes::V;
+    V s[9] = {};
+    for (; t + 4 <= nb; t += 4) {
+      V f[3], r[3];
+      lanes::load_xyz(d.force[k0 + t].data(), f[0], f[1], f[2]);
+      std::memcpy(&r[0], blk.rx + t, sizeof(V));
+      std::memcpy(&r[1], blk.ry + t, sizeof(V));
+      std::memcpy(&r[2], blk.rz + t, sizeof(V));
+      for (int a = 0; a < 3; ++a)
+        for (int b = 0; b < 3; ++b) s[3 * a + b] += f[a] * r[b];
+    }
+    for (int c = 0; c < 9; ++c)
+      for (int l = 0; l < 4; ++l) acc[c][l] = s[c][l];
+  }
+#endif
+  const auto add = [&](std::size_t u, std::size_t l) {
+    const Vec3& f = d.force[k0 + u];
+    const double r[3] = {blk.rx[u], blk.ry[u], blk.rz[u]};
+    for (int a = 0; a < 3; ++a)
+      for (int b = 0; b < 3; ++b) acc[3 * a + b][l] += f[a] * r[b];
+  };
+  for (; t + 4 <= nb; t += 4)
+    for (std::size_t l = 0; l < 4; ++l) add(t + l, l);
+  for (; t < nb; ++t) add(t, t & 3);
+  double* __restrict out = d.stress_blocks + 9 * (k0 / k_block);
+  for (int c = 0; c < 9; ++c) out[c] = (acc[c][0] + acc[c][1]) + (acc[c][2] + acc[c][3]);
+}
+
 template <class Normal, class Tangential, RollingModel Roll, int Affine, bool Update, bool Ghosts>
 struct ContactKernel {
   static constexpr bool rolling_history = Roll == RollingModel::epsd2 || Roll == RollingModel::epsd;
@@ -397,25 +437,6 @@ struct ContactKernel {
   static V lanes_of(F f) {
     return V{f(0), f(1), f(2), f(3)};
   }
-  // Four consecutive 3-vectors (12 doubles) as three vectors of x, y and z, and back.
-  static void load_xyz(const Vec3* p, V& x, V& y, V& z) {
-    V a0, a1, a2;  // x0 y0 z0 x1 | y1 z1 x2 y2 | z2 x3 y3 z3
-    std::memcpy(&a0, p[0].data(), sizeof a0);
-    std::memcpy(&a1, p[0].data() + 4, sizeof a1);
-    std::memcpy(&a2, p[0].data() + 8, sizeof a2);
-    x = __builtin_shuffle(__builtin_shuffle(a0, a1, L{0, 3, 6, 7}), a2, L{0, 1, 2, 5});
-    y = __builtin_shuffle(__builtin_shuffle(a0, a1, L{1, 4, 7, 7}), a2, L{0, 1, 2, 6});
-    z = __builtin_shuffle(__builtin_shuffle(a0, a1, L{2, 5, 5, 5}), a2, L{0, 1, 4, 7});
-  }
-  static void store_xyz(Vec3* p, V x, V y, V z) {
-    const V a0 = __builtin_shuffle(__builtin_shuffle(x, y, L{0, 4, 1, 1}), z, L{0, 1, 4, 2});
-    const V a1 = __builtin_shuffle(__builtin_shuffle(x, y, L{2, 5, 2, 6}), z, L{1, 5, 0, 3});
-    const V a2 = __builtin_shuffle(__builtin_shuffle(x, y, L{3, 3, 3, 7}), z, L{6, 0, 3, 7});
-    std::memcpy(p[0].data(), &a0, sizeof a0);
-    std::memcpy(p[0].data() + 4, &a1, sizeof a1);
-    std::memcpy(p[0].data() + 8, &a2, sizeof a2);
-  }
-
   // Contig: the four are consecutive pairs (tt[0] + l), whose per-pair arrays load as vectors;
   // OneMaterial: one material pair, whose constants are broadcast.
   template <bool G, bool Contig, bool OneMaterial>
@@ -465,7 +486,7 @@ struct ContactKernel {
     // A per-pair array of 3-vectors as x, y, z lanes, and back.
     const auto of_pair3 = [&](const Vec3* a, V& x, V& y, V& z) {
       if constexpr (Contig) {
-        load_xyz(a + k[0], x, y, z);
+        lanes::load_xyz(a[k[0]].data(), x, y, z);
       } else {
         x = lanes_of([&](int l) { return a[k[l]][0]; });
         y = lanes_of([&](int l) { return a[k[l]][1]; });
@@ -474,7 +495,7 @@ struct ContactKernel {
     };
     const auto to_pair3 = [&](Vec3* a, V x, V y, V z) {
       if constexpr (Contig) {
-        store_xyz(a + k[0], x, y, z);
+        lanes::store_xyz(a[k[0]].data(), x, y, z);
       } else {
         for (int l = 0; l < 4; ++l) a[k[l]] = Vec3(x[l], y[l], z[l]);
       }
@@ -616,44 +637,7 @@ struct ContactKernel {
       phase3<G>(blk, k0, nb, in_array_order, changed);
     }
     d.stale[index] = changed != 0;
-    if (d.stress_blocks) stress_of_block(blk, k0, nb);
-  }
-
-  // The block's sum of f (x) r for the homogenizer (StressBlocks says in what order). The forces
-  // were just written (L1); r is the branch vector of phase 1, as the homogenizer computed it
-  // (x_i - x_j - H n). An open pair adds zeros.
-  // With the lanes, four pairs at a time in the lanes of AVX2 registers (the forces as x, y, z
-  // lanes): lane l is partial sum l, so the operations are the scalar loop's.
-  void stress_of_block(const Block& blk, std::size_t k0, std::size_t nb) const {
-    double acc[9][4] = {};
-    std::size_t t = 0;
-#if defined(SANDCELL_LANES)
-    if constexpr (k_lanes) {
-      V s[9] = {};
-      for (; t + 4 <= nb; t += 4) {
-        V f[3], r[3];
-        load_xyz(d.force + k0 + t, f[0], f[1], f[2]);
-        std::memcpy(&r[0], blk.rx + t, sizeof(V));
-        std::memcpy(&r[1], blk.ry + t, sizeof(V));
-        std::memcpy(&r[2], blk.rz + t, sizeof(V));
-        for (int a = 0; a < 3; ++a)
-          for (int b = 0; b < 3; ++b) s[3 * a + b] += f[a] * r[b];
-      }
-      for (int c = 0; c < 9; ++c)
-        for (int l = 0; l < 4; ++l) acc[c][l] = s[c][l];
-    }
-#endif
-    const auto add = [&](std::size_t u, std::size_t l) {
-      const Vec3& f = d.force[k0 + u];
-      const double r[3] = {blk.rx[u], blk.ry[u], blk.rz[u]};
-      for (int a = 0; a < 3; ++a)
-        for (int b = 0; b < 3; ++b) acc[3 * a + b][l] += f[a] * r[b];
-    };
-    for (; t + 4 <= nb; t += 4)
-      for (std::size_t l = 0; l < 4; ++l) add(t + l, l);
-    for (; t < nb; ++t) add(t, t & 3);
-    double* __restrict out = d.stress_blocks + 9 * (k0 / k_block);
-    for (int c = 0; c < 9; ++c) out[c] = (acc[c][0] + acc[c][1]) + (acc[c][2] + acc[c][3]);
+    if (d.stress_blocks) stress_of_block<k_lanes>(d, blk, k0, nb);
   }
 
   void chunk(std::size_t b, std::size_t e) const {
