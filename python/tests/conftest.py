@@ -19,6 +19,13 @@ def base_model(friction=0.5):
     return sc.Model(dt, [mat], contact)
 
 
+def pytest_configure(config):
+    config.addinivalue_line(
+        "markers",
+        "whole_app: runs one of the app's whole tests again (preparation and shear, ~10^5 steps) to compare "
+        "files bit for bit; python.asan deselects them, all but test_twin's small.toml (python/CMakeLists.txt)")
+
+
 @pytest.fixture(scope="session")
 def work_dir():
     base = os.environ.get("SANDCELL_PYTHON_WORK")

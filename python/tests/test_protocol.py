@@ -148,6 +148,7 @@ def test_the_undrained_path_holds_the_volume_and_refuses_what_it_cannot_do():
     assert worst < 1e-9
 
 
+@pytest.mark.whole_app  # resume under the sanitizers: test_io.cpp; the cyclic path: test_paths.py
 def test_a_cyclic_test_from_toml_resumes_bitwise(tmp_path):
     """[cyclic] through the app: 2 strain cycles of +-0.2 % (4 reversals), the shear stopped after 300
     steps (one reversal made) and resumed (the path's memory, its direction and reversals, rides in the

@@ -38,7 +38,10 @@ def attributes(group, prefix=""):
     return out
 
 
-@pytest.fixture(scope="module", params=sorted(CASES))
+# Under the sanitizers the engine runs ~30x slower; there small.toml stands for the three (the paths'
+# own code runs under them in test_paths.py).
+@pytest.fixture(scope="module", params=[c if c == "small.toml" else pytest.param(c, marks=pytest.mark.whole_app)
+                                        for c in sorted(CASES)])
 def runs(work_dir, request):
     app = os.environ.get("SANDCELL_TRIAXIAL")
     if not app:
