@@ -4,6 +4,8 @@
 # (1,600 steps: the same particle-steps), on 1 and 2 threads. One JSON per run in OUT.
 #   bash rounds.sh OUT ROUNDS NAME=COMMAND NAME=COMMAND ...
 # COMMAND: a dem-bench binary and any options of its own, split at spaces (no spaces in paths).
+# SCENES (environment, default "L S") picks the scenes: SCENES=S runs dense-20k alone (binaries
+# older than --tile; experiments/2026-11-29-plain-20k).
 set -euo pipefail
 out=$1 rounds=$2
 shift 2
@@ -16,8 +18,8 @@ for r in $(seq 1 "$rounds"); do
     k=$(((i + r) % n))
     for t in 1 2; do
       read -ra cmd <<< "${bins[$k]}"
-      "${cmd[@]}" --tile 2 --steps 200 --threads "$t" --json > "$out/L$t-$r-${names[$k]}.json"
-      "${cmd[@]}" --steps 1600 --threads "$t" --json > "$out/S$t-$r-${names[$k]}.json"
+      case " ${SCENES:-L S} " in *" L "*) "${cmd[@]}" --tile 2 --steps 200 --threads "$t" --json > "$out/L$t-$r-${names[$k]}.json" ;; esac
+      case " ${SCENES:-L S} " in *" S "*) "${cmd[@]}" --steps 1600 --threads "$t" --json > "$out/S$t-$r-${names[$k]}.json" ;; esac
     done
   done
 done
