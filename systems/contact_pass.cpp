@@ -214,7 +214,6 @@ PassData bind_pass(const Model& model, State& state, Scratch& scratch) {
   return d;
 }
 
-// The pass over one chunk of pairs, block by block, with the laws composed at compile time.
 // The block's sum of f (x) r for the homogenizer (StressBlocks says in what order). The forces were
 // just written (L1); r is the branch vector of phase 1, as the homogenizer computed it
 // (x_i - x_j - H n). An open pair adds zeros.
@@ -255,6 +254,7 @@ void stress_of_block(const PassData& d, const Block& blk, std::size_t k0, std::s
   for (int c = 0; c < 9; ++c) out[c] = (acc[c][0] + acc[c][1]) + (acc[c][2] + acc[c][3]);
 }
 
+// The pass over one chunk of pairs, block by block, with the laws composed at compile time.
 template <class Normal, class Tangential, RollingModel Roll, int Affine, bool Update, bool Ghosts>
 struct ContactKernel {
   static constexpr bool rolling_history = Roll == RollingModel::epsd2 || Roll == RollingModel::epsd;

@@ -18,8 +18,13 @@ for r in $(seq 1 "$rounds"); do
     k=$(((i + r) % n))
     for t in 1 2; do
       read -ra cmd <<< "${bins[$k]}"
-      case " ${SCENES:-L S} " in *" L "*) "${cmd[@]}" --tile 2 --steps 200 --threads "$t" --json > "$out/L$t-$r-${names[$k]}.json" ;; esac
-      case " ${SCENES:-L S} " in *" S "*) "${cmd[@]}" --steps 1600 --threads "$t" --json > "$out/S$t-$r-${names[$k]}.json" ;; esac
+      for scene in ${SCENES:-L S}; do
+        case $scene in
+          L) "${cmd[@]}" --tile 2 --steps 200 --threads "$t" --json > "$out/L$t-$r-${names[$k]}.json" ;;
+          S) "${cmd[@]}" --steps 1600 --threads "$t" --json > "$out/S$t-$r-${names[$k]}.json" ;;
+          *) echo "SCENES: $scene is not a scene (L: 160,000 spheres, S: dense-20k)" >&2; exit 2 ;;
+        esac
+      done
     done
   done
 done
