@@ -14,6 +14,7 @@ if [ "${1:-}" = "--target" ]; then
   shift 2
 fi
 build=${1:-$src/build/deb}
+mkdir -p "$(dirname "$build")"
 cmake -S "$src" -B "$build" -G Ninja -DCMAKE_BUILD_TYPE=Release -DSANDCELL_ARCH=portable \
   -DCMAKE_INSTALL_PREFIX=/usr -DSANDCELL_PYTHON_INSTALL_DIR=lib/python3/dist-packages \
   -DSANDCELL_BUILD_TESTS=OFF > "$build.configure.log" 2>&1 || { cat "$build.configure.log"; exit 1; }
