@@ -1,5 +1,5 @@
 # apps.bench_digest_arch: dem-bench on the library as configured (SANDCELL_ARCH, e.g. x86-64-v3)
-# and dem-bench-portable on the same sources built for the baseline instruction set give the same
+# and dem-bench of the portable tree (the same sources built for the baseline instruction set) give the same
 # state digest (bitwise equal positions, velocities, spins, contact histories and cell) for every
 # contact-model variant, on scene B (the deforming box: affine terms in the integrator and the
 # contact velocities): the list build with its spatial sort, then 60 steps of the contact pass,
