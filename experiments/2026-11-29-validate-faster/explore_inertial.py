@@ -2,7 +2,8 @@
 paper and paper-faster tests of the same samples (tests.csv): e and q/p over the last 0.1 of eps_q,
 q/p at eps_q 0.02, the peak q/p, steps. Exploratory: chosen after the interim data, no verdict.
 
-Usage: PYTHONPATH=apps/analysis explore_inertial.py WORKDIR [INERTIAL_NUMBER (default 1.0e-3)] [--csv PATH]
+Usage: PYTHONPATH=apps/analysis explore_inertial.py WORKDIR [INERTIAL_NUMBER (default 1.0e-3)]
+           [--p0 500kPa] [--csv PATH]
 """
 import argparse
 import csv
@@ -19,25 +20,27 @@ def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("work")
     ap.add_argument("inertial", nargs="?", default="1.0e-3")
-    ap.add_argument("--csv", default=os.path.join(HERE, "explore-inertial.csv"))
+    ap.add_argument("--p0", default="500kPa", help="500kPa or 16000kPa")
+    ap.add_argument("--csv", default=None, help="default: explore-inertial.csv (500kPa), explore-inertial-P0.csv")
     a = ap.parse_args(argv)
     tests = read_tests(os.path.join(HERE, "tests.csv"))
+    out = a.csv or os.path.join(HERE, "explore-inertial.csv" if a.p0 == "500kPa" else f"explore-inertial-{a.p0}.csv")
     slow = f"paper-faster-i{a.inertial}"
     rows = []
     for seed in (2017, 2018):
-        m = measures(a.work, slow, seed, "500kPa", "0.5")
+        m = measures(a.work, slow, seed, a.p0, "0.5")
         if m is None:
             print(f"seed {seed}: no {slow} results in {a.work}")
             continue
         for protocol in ("paper", "paper-faster"):
-            t = tests.get((protocol, seed, "500kPa", "0.5"))
+            t = tests.get((protocol, seed, a.p0, "0.5"))
             if t:
                 keys = ("protocol", "seed", "status", "ok", "eps_q_end", "e", "eta", "eta_2pct", "peak_eta", "steps",
                         "state_digest")
                 rows.append({k: t[k] for k in keys})
         m = {k: round(v, 6) if isinstance(v, float) else v for k, v in m.items()}  # as tests.csv's rows
         rows.append({k: m[k] for k in rows[-1]} if rows else m)  # the same columns as the rows beside it
-    with open(a.csv, "w", newline="") as fh:
+    with open(out, "w", newline="") as fh:
         w = csv.DictWriter(fh, fieldnames=list(rows[0].keys()))
         w.writeheader()
         w.writerows(rows)
