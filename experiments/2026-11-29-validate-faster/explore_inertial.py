@@ -3,7 +3,7 @@ paper and paper-faster tests of the same samples (tests.csv): e and q/p over the
 q/p at eps_q 0.02, the peak q/p, steps. Exploratory: chosen after the interim data, no verdict.
 
 Usage: PYTHONPATH=apps/analysis explore_inertial.py WORKDIR [INERTIAL_NUMBER (default 1.0e-3)]
-           [--p0 500kPa] [--csv PATH]
+           [--p0 500kPa] [--b 0.5] [--csv PATH]
 """
 import argparse
 import csv
@@ -21,19 +21,22 @@ def main(argv=None):
     ap.add_argument("work")
     ap.add_argument("inertial", nargs="?", default="1.0e-3")
     ap.add_argument("--p0", default="500kPa", help="500kPa or 16000kPa")
-    ap.add_argument("--csv", default=None, help="default: explore-inertial.csv (500kPa), explore-inertial-P0.csv")
+    ap.add_argument("--b", default="0.5", help="0 or 0.5 (the validation's tests.csv holds both)")
+    ap.add_argument("--csv", default=None,
+                    help="default: explore-inertial.csv (500kPa, b 0.5), else explore-inertial[-P0][-bB].csv")
     a = ap.parse_args(argv)
     tests = read_tests(os.path.join(HERE, "tests.csv"))
-    out = a.csv or os.path.join(HERE, "explore-inertial.csv" if a.p0 == "500kPa" else f"explore-inertial-{a.p0}.csv")
+    name = "explore-inertial" + ("" if a.p0 == "500kPa" else f"-{a.p0}") + ("" if a.b == "0.5" else f"-b{a.b}")
+    out = a.csv or os.path.join(HERE, name + ".csv")
     slow = f"paper-faster-i{a.inertial}"
     rows = []
     for seed in (2017, 2018):
-        m = measures(a.work, slow, seed, a.p0, "0.5")
+        m = measures(a.work, slow, seed, a.p0, a.b)
         if m is None:
             print(f"seed {seed}: no {slow} results in {a.work}")
             continue
         for protocol in ("paper", "paper-faster"):
-            t = tests.get((protocol, seed, a.p0, "0.5"))
+            t = tests.get((protocol, seed, a.p0, a.b))
             if t:
                 keys = ("protocol", "seed", "status", "ok", "eps_q_end", "e", "eta", "eta_2pct", "peak_eta", "steps",
                         "state_digest")
