@@ -1,6 +1,6 @@
 """Summaries of percore.sh's runs: per round, the 160k / 20k throughput ratio (whole run, and
-without the list build, which both runs do once), or binary b / binary a on the 160k scene (the
-gather's time and the throughput). Writes a CSV of every round.
+without the list build, which both runs do once), and each scene's gather and contact pass per
+particle-step. Writes a CSV of every round.
 
 Usage: percore.py OUT CSV
 """
@@ -29,24 +29,15 @@ def main(out, csv_path):
     rows = []
     for r in rounds:
         files = {os.path.basename(p).split('.')[1]: load(p) for p in glob.glob(os.path.join(out, f'r{r}.*.json'))}
-        if '20k' in files:
-            a, b = files['20k'], files['160k']
-            rows.append({'round': r, 'a': '20k', 'b': '160k',
-                         'a_mps': a['particle_steps_per_s'] / 1e6, 'b_mps': b['particle_steps_per_s'] / 1e6,
-                         'ratio': b['particle_steps_per_s'] / a['particle_steps_per_s'],
-                         'ratio_no_build': no_build(b) / no_build(a),
-                         'a_gather_ns': 1e9 * a['system_s']['force_gather'] / (a['particles'] * a['steps']),
-                         'b_gather_ns': 1e9 * b['system_s']['force_gather'] / (b['particles'] * b['steps']),
-                         'a_contact_ns': 1e9 * a['system_s']['contact'] / (a['particles'] * a['steps']),
-                         'b_contact_ns': 1e9 * b['system_s']['contact'] / (b['particles'] * b['steps'])})
-        else:
-            a, b = files['160k-a'], files['160k-b']
-            if a['digest'] != b['digest']:
-                print(f'round {r}: digests differ ({a["digest"]} / {b["digest"]})')
-            rows.append({'round': r, 'a': '160k-a', 'b': '160k-b',
-                         'a_mps': a['particle_steps_per_s'] / 1e6, 'b_mps': b['particle_steps_per_s'] / 1e6,
-                         'ratio': b['particle_steps_per_s'] / a['particle_steps_per_s'],
-                         'gather_ratio': b['system_s']['force_gather'] / a['system_s']['force_gather']})
+        a, b = files['20k'], files['160k']
+        rows.append({'round': r, 'a': '20k', 'b': '160k',
+                     'a_mps': a['particle_steps_per_s'] / 1e6, 'b_mps': b['particle_steps_per_s'] / 1e6,
+                     'ratio': b['particle_steps_per_s'] / a['particle_steps_per_s'],
+                     'ratio_no_build': no_build(b) / no_build(a),
+                     'a_gather_ns': 1e9 * a['system_s']['force_gather'] / (a['particles'] * a['steps']),
+                     'b_gather_ns': 1e9 * b['system_s']['force_gather'] / (b['particles'] * b['steps']),
+                     'a_contact_ns': 1e9 * a['system_s']['contact'] / (a['particles'] * a['steps']),
+                     'b_contact_ns': 1e9 * b['system_s']['contact'] / (b['particles'] * b['steps'])})
     with open(csv_path, 'w', newline='') as f:
         w = csv.DictWriter(f, fieldnames=list(rows[0].keys()))
         w.writeheader()
