@@ -6,16 +6,18 @@
 # Usage: explore_inertial.sh TRIAXIAL WORKDIR [INERTIAL_NUMBER (1.0e-3)] [P0_KPA (500)] [SEEDS ("2017 2018")] [B (0.5)]
 # WORKDIR: the validation's (run.sh), holding prepare-sSEED with its samples.
 set -euo pipefail
-here="$(cd "$(dirname "$0")/../.." && pwd)"
+experiment="$(cd "$(dirname "$0")" && pwd)"
+here="$(cd "$experiment/../.." && pwd)"
+configs="$here/apps/triaxial/configs"
+source "$experiment/configs.sh"  # narrow, seeded
 triaxial=$1 work=$2 inertial=${3:-1.0e-3} kpa=${4:-500} seeds=${5:-"2017 2018"} b=${6:-0.5}
 tag="i${inertial}"
 for seed in $seeds; do
   dir="$work/paper-faster-$tag-s$seed-p0_${kpa}kPa-b$b"
   mkdir -p "$dir"
   [ -e "$dir/sample-p0_${kpa}kPa.h5" ] || ln "$work/prepare-s$seed/sample-p0_${kpa}kPa.h5" "$dir/"
-  sed "s/^seed = .*/seed = $seed/; s/^p0 = .*/p0 = [${kpa}.0e3]/; s/^path = .*/path = [\"constant_p\"]/;
-       s/^b = .*/b = [$b]/; s/^parallel = .*/parallel = 1/; s/^inertial_number = .*/inertial_number = $inertial/" \
-    "$here/apps/triaxial/configs/paper-faster.toml" > "$dir.toml"
+  narrow <(seeded paper-faster "$seed") "${kpa}.0e3" "$b" |
+    sed "s/^inertial_number = .*/inertial_number = $inertial/" > "$dir.toml"
   "$triaxial" "$dir.toml" --out "$dir" --threads 1 --resume \
     >> "$dir.log" 2>&1 &
 done

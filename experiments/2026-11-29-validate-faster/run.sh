@@ -30,8 +30,7 @@ mkdir -p "$work"
 # engine changes are not seen: run from a clean checkout).
 { git -C "$(dirname "$triaxial")" rev-parse HEAD 2>/dev/null || echo unknown; } > "$work/BUILD.txt"
 
-narrow() { sed "s/^p0 = .*/p0 = [$2]/; s/^path = .*/path = [\"constant_p\"]/; s/^b = .*/b = [$3]/; s/^parallel = .*/parallel = 1/" "$1"; }
-seeded() { sed "s/^seed = .*/seed = $2/" "$configs/$1.toml"; }
+source "$experiment/configs.sh"  # narrow, seeded
 run() {  # run DIR CONFIG_TEXT THREADS [ARGS...]: one job, resumable, its log in DIR.log
   local dir="$1" text="$2" threads="$3"
   shift 3
