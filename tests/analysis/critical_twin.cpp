@@ -6,7 +6,7 @@
 //
 // SERIES.csv: a header, then rows `series,eps_q,p,q,e,z_mech,fabric_anisotropy` (series: an integer
 // id; the rows of a series consecutive, eps_q non-decreasing). Prints one line per series:
-//     series reached rows change_eta se_eta change_p se_p change_e se_e change_z se_z change_fa se_fa first_row
+//     series reached rows (change se n_eff) x (eta p e z fa) first_row
 // for the test on the whole series with the app's defaults (CriticalTest{}, or the four settings
 // given: a run's shear.critical_window, critical_tolerance, critical_tolerance_e and
 // critical_tolerance_fabric), and first_row: the
@@ -82,7 +82,7 @@ int main(int argc, char** argv) {
     for (std::size_t n = 1; n <= t.eps_q.size() && first == 0; ++n)
       if (check_critical(series(n), test).reached) first = n;
     std::printf("%ld %d %zu", id, c.reached ? 1 : 0, c.rows);
-    for (const auto& tr : {c.eta, c.p, c.e, c.z, c.fabric}) std::printf(" %.17g %.17g", tr.change, tr.se);
+    for (const auto& tr : {c.eta, c.p, c.e, c.z, c.fabric}) std::printf(" %.17g %.17g %.17g", tr.change, tr.se, tr.n_eff);
     std::printf(" %zu\n", first);
   }
   return 0;

@@ -1,4 +1,4 @@
-"""The critical-state test (sandcell_analysis.critical), version 2 and the kept version 1, on
+"""The critical-state test (sandcell_analysis.critical), version 3 and the kept versions 2 and 1, on
 synthetic records with known trends and noise."""
 import math
 import unittest
@@ -123,7 +123,8 @@ class CriticalV2(unittest.TestCase):
     def test_first_passage_by_noise_is_refused(self):
         # eta drifts by 1.5 % over the window (inside the 2 % tolerance) under AR(1) noise (phi 0.95,
         # sd 2 %): the change alone (version 1's test) passes, but its error (~1 %: AR(1) cuts the
-        # 201 rows to ~5 effective ones) puts change + 2 SE beyond 2 %: version 2 does not accept it.
+        # 201 rows to ~5 effective ones) puts change + 2 SE beyond 2 %: neither version 2 nor 3
+        # (6 SE there) accepts it.
         rng = np.random.default_rng(10)
         s = _tail(rng, self.x)
         u = (self.x - self.x[-1]) / 0.1
@@ -174,10 +175,11 @@ class CriticalV2(unittest.TestCase):
 
 
 class FirstPassage(unittest.TestCase):
-    def test_version_1_stops_earlier_than_version_2_on_a_settling_test(self):
+    def test_version_1_stops_earlier_than_version_3_on_a_settling_test(self):
         # eta settles exponentially (scale 0.05 of strain) under AR(1) noise: version 1 (change
         # alone over 5 % of eps_1, from 10 %) passes on the first window whose line happens to be
-        # flat; version 2 (change + 2 SE over 0.1 of eps_q, from 0.3) needs the tail. eps_1 = eps_q
+        # flat; version 3 (change + 2 SE over 0.1 of eps_q, from 0.3; 6 SE in a window of < 10
+        # effective rows) needs the tail. eps_1 = eps_q
         # here (a b = 0 test at constant volume, for the sake of one axis).
         rng = np.random.default_rng(14)
         x = np.linspace(0, 0.6, 1201)
@@ -190,12 +192,59 @@ class FirstPassage(unittest.TestCase):
         self.assertIsNotNone(n2)
         self.assertGreaterEqual(x[n2 - 1], 0.3)  # never before window + pre-strain
         self.assertLess(n1, n2)
-        # the prefix version 2 stops at is critical, the row before is not
+        # the prefix version 3 stops at is critical, the row before is not
         self.assertTrue(critical.detect_critical(x[:n2], {k: v[:n2] for k, v in s.items()})["reached"])
         self.assertFalse(critical.detect_critical(x[:n2 - 1], {k: v[:n2 - 1] for k, v in s.items()})["reached"])
 
-    def test_app_criterion_is_version_2(self):
-        self.assertEqual(critical.APP_CRITERION, critical.V2_DEFAULTS)
+    def test_app_criterion_is_version_3(self):
+        self.assertEqual(critical.APP_CRITERION, critical.V3_DEFAULTS)
         self.assertEqual((critical.APP_CRITERION["window"], critical.APP_CRITERION["pre_strain"]), (0.1, 0.2))
+        self.assertEqual((critical.APP_CRITERION["neff_min"], critical.APP_CRITERION["k_short"]), (10.0, 6.0))
+        self.assertEqual(dict(critical.V2_DEFAULTS, k_short=6.0), critical.V3_DEFAULTS)
         with self.assertRaises(ValueError):
-            critical.first_critical_row(np.zeros(3), {}, criterion="v3")
+            critical.first_critical_row(np.zeros(3), {}, criterion="v4")
+
+
+class FalsePositives(unittest.TestCase):
+    """The rule as a detector of stationarity, on series known to drift beyond the tolerance
+    (experiments/2026-11-29-rule-check maps the whole grid; these are its worst cells)."""
+
+    @staticmethod
+    def accepted(phi, drift, tau, reps, criterion, rows=100, seed=45):
+        """Share of `reps` eta series accepted: eta drifts by `drift` tolerances over the window in
+        AR(1) noise of lag-1 coefficient phi, scaled so the least-squares change has a standard
+        deviation of `tau` tolerances (measured on drift-free replicates); every other quantity
+        steady and noiseless, so eta alone decides."""
+        rng = np.random.default_rng(seed)
+        tol = critical.V3_DEFAULTS["tol_eta"]
+        x = np.linspace(0.3, 0.4, rows)
+        xc = x - x.mean()
+
+        def noise():
+            return np.array([ar1(rng, rows, phi, 1.0) for _ in range(reps)])
+
+        unit = np.std(noise() @ xc / float(xc @ xc) * 0.1)
+        ok = 0
+        for y in noise() * (tau * tol / unit):
+            eta = 1.2 * (1.0 + drift * tol * (x - x[-1]) / 0.1 + y)
+            s = {"p": np.full(rows, 5e5), "q": 5e5 * eta, "eta": eta, "e": np.full(rows, 0.75),
+                 "Z_mech": np.full(rows, 4.2), "F_a": np.full(rows, 0.3)}
+            ok += critical.detect_critical(x, s, **criterion)["reached"]
+        return ok / reps
+
+    def test_drift_of_one_and_a_half_tolerances_is_refused(self):
+        # Series known to be negative: eta drifts by 1.5 tolerances over the window. The criterion
+        # (rule_check's, the band detector's bound): at most 5 % accepted. The cell is the grid's
+        # worst (phi 0.998, ~6 effective rows of 100, tau one tolerance): version 3 accepted 2.1 %
+        # of 4,000 there, version 2 8.4 %. 1,000 replicates: the binomial SD of 2-8 % is 0.4-0.9 %,
+        # so 5 % separates the two by > 3 SD each side.
+        v3 = self.accepted(0.998, 1.5, 1.0, 1000, critical.V3_DEFAULTS)
+        v2 = self.accepted(0.998, 1.5, 1.0, 1000, critical.V2_DEFAULTS)
+        self.assertLessEqual(v3, 0.05)
+        self.assertGreater(v2, 0.05)  # the defect version 3 mends: version 2's SE is short there
+
+    def test_steady_series_with_small_fluctuation_still_pass(self):
+        # Not a rule that refuses everything: eta steady (no drift), its change's SD a quarter of the
+        # tolerance, in a window of ~19 effective rows (phi 0.9, 300 rows): 95 % accepted in the grid
+        # (4,000 replicates); here >= 85 % of 400 (binomial SD 1.1 %: 9 SD of room).
+        self.assertGreaterEqual(self.accepted(0.9, 0.0, 0.25, 400, critical.V3_DEFAULTS, rows=300), 0.85)

@@ -94,7 +94,7 @@ def test_module_dispatch_replay_critical_and_analyze(tmp_path):
     s = results.read_columns(h5, ("strain", "p", "q", "e", "eps_q", "Z_mech", "fabric"))
     n = critical.first_critical_row(s["eps_q"], {"p": s["p"], "q": s["q"], "eta": s["q"] / s["p"], "e": s["e"],
                                                  "Z_mech": s["Z_mech"], "fabric": s["fabric"]})
-    assert n is not None and f"critical (v2) at row {n}: " in r.stdout, r.stdout
+    assert n is not None and f"critical (v3) at row {n}: " in r.stdout, r.stdout
     r = run_module("replay-critical", str(tmp_path / "missing.h5"), cwd=str(tmp_path))
     assert r.returncode == 2 and r.stderr.count("\n") == 1 and "cannot read" in r.stderr, r.stderr
     run_dir = tmp_path / "run"

@@ -26,5 +26,5 @@ From Python, with the package installed, or apps/analysis (source tree) or <pref
 
     from sandcell_analysis import results, critical
     test, why = results.read_test("run/p-b0.00-p0_500kPa.h5")
-    verdict = critical.detect_critical(test["eps_q"], test)  # version 2: the window in eps_q
+    verdict = critical.detect_critical(test["eps_q"], test)  # version 3: the window in eps_q
 """

@@ -50,12 +50,14 @@ Stress paths: every test is judged by the app's watchdog rules (path_check.py, w
   paths: status, largest errors, turn of the axes, critical, banded) and summary.json (excluded,
   path_checks, warnings).
 
-Critical state (per test; critical.py, version 2): found after the fact on the whole test, never by
-  first passage. Over the last W of eps_q, least-squares lines through eta, p, e, Z_mech and F_a
-  (F_a = sqrt(F':F'), F' = 15/2 dev(fabric)); each quantity's change over the window plus twice its
-  standard error (OLS x sqrt((1 + r1)/(1 - r1)), r1 the residuals' lag-1 autocorrelation: serially
-  correlated rows) must be within its tolerance. The window must hold >= --min-points rows over 90 %
-  of W and the test must have reached W + --pre-strain. The critical point: the window means; e_c
+Critical state (per test; critical.py, version 3; --criterion v2 for the one before): found after the
+  fact on the whole test, never by first passage. Over the last W of eps_q, least-squares lines through
+  eta, p, e, Z_mech and F_a (F_a = sqrt(F':F'), F' = 15/2 dev(fabric)); each quantity's change over the
+  window plus twice its standard error (OLS x sqrt((1 + r1)/(1 - r1)), r1 the residuals' lag-1
+  autocorrelation: serially correlated rows), six times where the window holds fewer than 10 effective
+  rows n (1 - r1)/(1 + r1) (version 2: twice whatever the window), must be within its tolerance. The
+  window must hold >= --min-points rows over 90 % of W and the test must have reached W + --pre-strain.
+  The critical point: the window means; e_c
   is its void ratio, M = mean q / mean p, b and theta of the window-mean stress tensor. The
   first-passage test of the 2026-11-28 campaigns (version 1: 5 % of eps_1, the change alone) is
   applied to the same rows (the tests table's v1 column) and, where a test is critical, replayed to
@@ -101,7 +103,8 @@ import time
 import numpy as np
 from scipy import stats
 
-from .critical import APP_CRITERION_V1, V2_DEFAULTS, detect_critical, detect_critical_v1, first_critical_row
+from .critical import (APP_CRITERION_V1, V2_DEFAULTS, V3_DEFAULTS, detect_critical, detect_critical_v1,
+                       first_critical_row)
 from .csl import csl_e, distinct_levels, fit_csl
 from .dilatancy import (M_STUDY, dilatancy_g, dilatancy_li3d, fit_g_form, fit_li_dafalias, fit_m_pt,
                         initial_linear_part, phase_transformation, plastic_dilatancy, slope_max_dilation)
@@ -283,16 +286,21 @@ def cross_validate_3d(tests, groups):
                          "(fit on constant p, predict constant sigma3, and the reverse)"}
 
 
+def _k_short(opt):
+    """Standard errors to spare in a window of few effective rows: version 3's 6, or 2 (version 2)."""
+    return (V2_DEFAULTS if getattr(opt, "criterion", "v3") == "v2" else V3_DEFAULTS)["k_short"]
+
+
 def analyze_tests(tests, opt):
     """Run every step on the loaded tests; returns the summary dict (tests gain their series)."""
     warn = []
     for t in tests:
         eps1 = t["eps1"]
-        # Version 2, after the fact on the whole test's last window of eps_q (never first passage).
+        # Version 3 (or 2), after the fact on the whole test's last window of eps_q (never first passage).
         t["critical"] = detect_critical(
             t["eps_q"], t, window=opt.window, tol_eta=opt.tol_eta, tol_p=opt.tol_p, tol_e=opt.tol_e,
             tol_z=opt.tol_z, tol_fabric=opt.tol_fabric, tol_epsv=opt.tol_epsv, pre_strain=opt.pre_strain,
-            min_points=opt.min_points)
+            min_points=opt.min_points, k_short=_k_short(opt))
         # Version 1 on the same series (the early stop's test), for the bias of stopping there.
         t["critical_v1"] = detect_critical_v1(eps1, t, **APP_CRITERION_V1)
         if not np.isfinite(t["b_nominal"]):
@@ -458,10 +466,10 @@ def analyze_tests(tests, opt):
 
 
 def early_stop_bias(tests):
-    """Where a test reached the critical state (version 2) at its end: the state at which the
+    """Where a test reached the critical state (version 3, or 2) at its end: the state at which the
     version 1 first-passage test would have stopped it (replayed row by row on its series) against
-    the version 2 state. Rows: test, eps_q_v1 (where v1 stops), d_eta and d_e (v1 - v2), d_p_rel
-    (p_v1 / p_v2 - 1), and both points."""
+    end state. Rows: test, eps_q_v1 (where v1 stops), d_eta and d_e (v1 - end), d_p_rel
+    (p_v1 / p_end - 1), and both points ("v1", "end")."""
     rows = []
     for t in tests:
         if not t["critical"]["reached"]:
@@ -474,10 +482,10 @@ def early_stop_bias(tests):
             continue
         prefix = {k: t[k][:n] for k in keys + ("eps_q",)}
         v1 = detect_critical_v1(t["eps1"][:n], prefix, **APP_CRITERION_V1)["point"]
-        v2 = t["critical"]["point"]
-        rows.append({"test": t["name"], "eps_q_v1": float(t["eps_q"][n - 1]), "d_eta": v1["eta"] - v2["eta"],
-                     "d_e": v1["e"] - v2["e"], "d_p_rel": v1["p"] / v2["p"] - 1.0, "v1": v1,
-                     "v2": {k: v2[k] for k in ("p", "q", "eta", "e", "M")}})
+        end = t["critical"]["point"]
+        rows.append({"test": t["name"], "eps_q_v1": float(t["eps_q"][n - 1]), "d_eta": v1["eta"] - end["eta"],
+                     "d_e": v1["e"] - end["e"], "d_p_rel": v1["p"] / end["p"] - 1.0, "v1": v1,
+                     "end": {k: end[k] for k in ("p", "q", "eta", "e", "M")}})
     return rows
 
 
@@ -683,7 +691,8 @@ def write_report(path, tests, res, opt, files, skipped):
         add(f"- skipped `{f}`: {why}")
     add("")
     add(f"Options: window {opt.window:g} of eps_q, pre-strain {opt.pre_strain:g}, "
-        f"min rows {opt.min_points}, tolerances (change + 2 SE) eta {opt.tol_eta:g}, p {opt.tol_p:g}, "
+        f"min rows {opt.min_points}, criterion {getattr(opt, 'criterion', 'v3')}, "
+        f"tolerances (change + 2 SE; 6 SE below 10 effective rows in v3) eta {opt.tol_eta:g}, p {opt.tol_p:g}, "
         f"Z_mech {opt.tol_z:g}, F_a {opt.tol_fabric:g} (relative), e {opt.tol_e:g}"
         + (f", eps_v {opt.tol_epsv:g}" if opt.tol_epsv else "") + " (absolute); "
         f"smoothing +-{opt.smooth:g} eps_q (at least {opt.smooth_min:g}), min eps_q "
@@ -721,7 +730,8 @@ def write_report(path, tests, res, opt, files, skipped):
     add("")
 
     add("## 1. Tests\n")
-    add("The critical state is found after the fact on the whole test (version 2; `critical.py`), never "
+    add(f"The critical state is found after the fact on the whole test (version {_k_short(opt) == 2.0 and 2 or 3}; "
+        "`critical.py`), never "
         "by first passage: over the last "
         f"{opt.window:g} of eps_q (the test must have run to eps_q >= {opt.window + opt.pre_strain:g}, "
         f">= {opt.min_points} rows over 90 % of the window), a least-squares line through each of eta and p "
@@ -729,7 +739,9 @@ def write_report(path, tests, res, opt, files, skipped):
         f"(relative {opt.tol_z:g}) and the fabric anisotropy F_a (relative {opt.tol_fabric:g})"
         + (f", eps_v (absolute {opt.tol_epsv:g})" if opt.tol_epsv else "")
         + "; a quantity is steady when its change over the window plus 2 standard errors (the OLS error "
-        "times sqrt((1 + r1)/(1 - r1)), r1 the residuals' lag-1 autocorrelation) is within its tolerance. "
+        "times sqrt((1 + r1)/(1 - r1)), r1 the residuals' lag-1 autocorrelation; in version 3 6 standard errors "
+        "where the window holds fewer than 10 effective rows n (1 - r1)/(1 + r1), whose error is then short) "
+        "is within its tolerance. "
         "Critical point = window means; M = q_c/p_c; e_c is the critical point's window-mean void ratio "
         "(the CSL's value at p is written e_CSL(p)). eps_v is compression positive; psi0 = e0 - e_CSL(p0) "
         f"with the {res['psi_source']}. `v1`: the first-passage test of the 2026-11-28 campaigns (the "
@@ -751,7 +763,7 @@ def write_report(path, tests, res, opt, files, skipped):
     add("")
     notc = [t for t in tests if not t["critical"]["reached"]]
     if notc:
-        add("Not at the critical state (version 2), and why:\n")
+        add("Not at the critical state, and why:\n")
         for t in notc:
             add(f"- {t['name']}: " + "; ".join(t["critical"]["reasons"]))
         add("")
@@ -945,9 +957,9 @@ def write_report(path, tests, res, opt, files, skipped):
     early = res.get("early_stop", [])
     if early:
         add("### The early stop's bias\n")
-        add("Where a test reached the critical state (version 2) at its end, the state where the first-passage "
-            "test (version 1) would have stopped it, replayed on its rows, against the version 2 state:\n")
-        add("| test | v1 stop at eps_q (%) | eta v1 - v2 | e v1 - v2 | p v1 / v2 - 1 |")
+        add("Where a test reached the critical state at its end, the state where the first-passage "
+            "test (version 1) would have stopped it, replayed on its rows, against the end state:\n")
+        add("| test | v1 stop at eps_q (%) | eta v1 - end | e v1 - end | p v1 / end - 1 |")
         add("|---|---|---|---|---|")
         for r in early:
             add(f"| {r['test']} | {_f(100 * r['eps_q_v1'], '.1f')} | {_f(r['d_eta'], '+.4f')} "
@@ -1011,7 +1023,7 @@ def _jsonable(x):
 # The one definition of each quantity the report and summary.json name (README and docs use the same).
 DEFINITIONS = {
     "e_c": "the critical point's void ratio: the mean e over the window of eps_q in which the test is "
-           "critical (version 2); per test, tests[].critical_point.e",
+           "critical (version 3); per test, tests[].critical_point.e",
     "e_CSL(p)": "the critical state line's void ratio at p: e_Gamma - lambda (p/p_a)^xi, p_a = 101.325 kPa, "
                 "fitted to the e_c of the critical tests",
     "psi": "e - e_CSL(p) of the test's (path, b) group (groups[]); psi0 uses the pooled CSL",
@@ -1035,7 +1047,7 @@ def build_summary(tests, res, opt, files, skipped):
             "min_d": t["min_d"], "eps1_min_d": t["eps1_min_d"], "max_dv_de1": t["max_dv_de1"],
             "eps_v_end": t["end"]["eps_v"],
             "psi0": t["psi0"], "dilatancy_points": int(np.sum(t["dil"]["mask"])),
-            "eps_q_end": t["end"]["eps_q"], "criterion": "v2",
+            "eps_q_end": t["end"]["eps_q"], "criterion": t["critical"]["criterion"],
             "critical_v1": {"reached": t["critical_v1"]["reached"], "point": t["critical_v1"]["point"]},
             "psi0_group": t["psi0_group"], "moduli": t["dil"]["moduli"], "initial_linear": t["initial_linear"],
             "state_for_m": t["state_m"],
@@ -1101,8 +1113,11 @@ def parse_args(argv):
                     "single directory argument, else ./analysis)")
     ap.add_argument("--title", default="sandcell critical-state analysis",
                     help="title of the report and the figures")
-    g = ap.add_argument_group("critical state (version 2, after the fact on the whole test)")
-    D = V2_DEFAULTS
+    g = ap.add_argument_group("critical state (version 3, after the fact on the whole test)")
+    D = V3_DEFAULTS
+    g.add_argument("--criterion", choices=("v3", "v2"), default="v3",
+                   help="v3: 6 standard errors to spare where a window holds fewer than 10 effective rows, "
+                   "2 elsewhere (default); v2: 2 everywhere (the test before 2026-11-29)")
     g.add_argument("--window", type=_positive, default=D["window"], metavar="W",
                    help=f"window at the end of each test, deviatoric strain eps_q (default {D['window']:g})")
     g.add_argument("--pre-strain", type=_nonneg, default=D["pre_strain"], metavar="S",
@@ -1261,7 +1276,7 @@ def run(opt):
         t["critical"] = detect_critical(
             t["eps_q"], t, window=opt.window, tol_eta=opt.tol_eta, tol_p=opt.tol_p, tol_e=opt.tol_e,
             tol_z=opt.tol_z, tol_fabric=opt.tol_fabric, tol_epsv=opt.tol_epsv, pre_strain=opt.pre_strain,
-            min_points=opt.min_points)
+            min_points=opt.min_points, k_short=_k_short(opt))
     for t in excluded:
         res["warnings"].append(f"{t['name']} left out of every fit, table, trend and figure: {t['status']}"
                                + (f": {t['status_reason']}" if t["status_reason"] else ""))

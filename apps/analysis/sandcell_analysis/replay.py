@@ -1,11 +1,12 @@
 """The app's critical-state stop replayed on a shearing test's series (`replay-critical`).
 
-    python -m sandcell_analysis replay-critical RESULTS.h5 [--criterion v2|v1] [--window W]
+    python -m sandcell_analysis replay-critical RESULTS.h5 [--criterion v3|v2|v1] [--window W]
         [--tolerance T] [--tolerance-e T]
 
-Applies the app's test (critical.APP_CRITERION, version 2, the twin of apps/triaxial/protocol/critical.hpp:
-the last 0.1 of eps_q, eta, p, e, Z_mech and the fabric anisotropy by change + 2 standard errors; or
-with --criterion v1 the first-passage test of the 2026-11-28 campaigns, the last 5 % of eps_1) after
+Applies the app's test (critical.APP_CRITERION, version 3, the twin of apps/triaxial/protocol/critical.hpp:
+the last 0.1 of eps_q, eta, p, e, Z_mech and the fabric anisotropy by change + 2 standard errors, 6 in a
+window of fewer than 10 effective rows; --criterion v2: 2 whatever the window; --criterion v1: the
+first-passage test of the 2026-11-28 campaigns, the last 5 % of eps_1) after
 every series row, as the app does with `shear.stop_at_critical`, and prints the first row where it
 holds (strain, step, wall time, the changes, the window means) and the changes over the test's last
 window. For a run made without the stop, or before the test changed: where the app would stop it
@@ -18,15 +19,15 @@ import sys
 
 import numpy as np
 
-from .critical import (APP_CRITERION, APP_CRITERION_V1, detect_critical, detect_critical_v1, first_critical_row,
-                       with_fabric_anisotropy)
+from .critical import (APP_CRITERION, APP_CRITERION_V1, V2_DEFAULTS, detect_critical, detect_critical_v1,
+                       first_critical_row, with_fabric_anisotropy)
 from .results import InputError, read_columns
 
 PROG = os.environ.get("SANDCELL_ANALYZE_PROG", "replay-critical")
 
 
-def replay(path, window=None, tol_eta=None, tol_p=None, tol_e=None, criterion="v2"):
-    """The app's stop on one results file. Returns a dict: x (eps_q for v2, eps_1 for v1), eps1, step,
+def replay(path, window=None, tol_eta=None, tol_p=None, tol_e=None, criterion="v3"):
+    """The app's stop on one results file. Returns a dict: x (eps_q for v3 and v2, eps_1 for v1), eps1, step,
     wall (arrays), rows (the number of rows read), first (rows of the first critical prefix, None if
     none is), at_first and last (the test's verdicts on that prefix and on the whole series),
     covered (whether the last window is long enough to be judged), criterion."""
@@ -37,8 +38,8 @@ def replay(path, window=None, tol_eta=None, tol_p=None, tol_e=None, criterion="v
         base, test, x = APP_CRITERION_V1, detect_critical_v1, eps1
     else:
         if "eps_q" not in s:
-            raise InputError(f"cannot read {path}: /series lacks eps_q (the version 2 test's strain)")
-        base, test, x = APP_CRITERION, detect_critical, s["eps_q"]
+            raise InputError(f"cannot read {path}: /series lacks eps_q (the version {criterion[1]} test's strain)")
+        base, test, x = APP_CRITERION if criterion == "v3" else V2_DEFAULTS, detect_critical, s["eps_q"]
         series.update({k: s[k] for k in ("Z_mech", "fabric") if k in s})
         series = with_fabric_anisotropy(series)
         series.pop("fabric", None)
@@ -81,7 +82,7 @@ def report(path, r):
         pt = r["at_first"]["point"]
         step, wall = r["step"][n - 1], r["wall"][n - 1]
         step = f"{int(step)}" if np.isfinite(step) else "?"  # files without /series/step or wall_time
-        at = f", eps_q = {100 * x[n - 1]:.2f} %" if r["criterion"] == "v2" else ""
+        at = f", eps_q = {100 * x[n - 1]:.2f} %" if r["criterion"] != "v1" else ""
         lines.append(f"critical ({r['criterion']}) at row {n}: eps1 = {100 * eps1[n - 1]:.2f} %{at}, "
                      f"step {step}, wall {wall:.0f} s; changes over the window: "
                      f"{_changes(r['at_first'])}; window means: p {pt['p'] / 1e6:.4f} MPa, M {pt['M']:.4f}, "
@@ -96,10 +97,11 @@ def main(argv=None):
                                  formatter_class=argparse.RawDescriptionHelpFormatter,
                                  epilog="\n\n".join(__doc__.split("\n\n")[2:]))
     ap.add_argument("results", help="a shearing test's results file (<test>.h5)")
-    ap.add_argument("--criterion", choices=("v2", "v1"), default="v2",
-                    help="v2: the app's test (default); v1: the 2026-11-28 campaigns' first passage")
+    ap.add_argument("--criterion", choices=("v3", "v2", "v1"), default="v3",
+                    help="v3: the app's test (default); v2: 2 standard errors whatever the window; "
+                         "v1: the 2026-11-28 campaigns' first passage")
     ap.add_argument("--window", type=float, default=None,
-                    help="eps_q for v2 (0.1), eps_1 for v1 (0.05)")
+                    help="eps_q for v3 and v2 (0.1), eps_1 for v1 (0.05)")
     ap.add_argument("--tolerance", type=float, default=None,
                     help="largest relative change of q/p and of p over the window (0.02)")
     ap.add_argument("--tolerance-e", type=float, default=None,

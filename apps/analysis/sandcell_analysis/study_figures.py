@@ -174,7 +174,7 @@ def phi22_Mc_K(phi_deg=None):
 # ---------------------------------------------------------------- the adapters (APIs being changed)
 
 def critical_of(test):
-    """ADAPTER to critical.py: the critical-state test (version 2: the last 0.1 of eps_q) of a test's
+    """ADAPTER to critical.py: the critical-state test (version 3: the last 0.1 of eps_q) of a test's
     series with the package's defaults, detect_critical's dict (reached, point)."""
     return detect_critical(test["eps_q"], test)
 

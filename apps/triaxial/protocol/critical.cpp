@@ -11,9 +11,11 @@ namespace {
 
 constexpr double k_nan = std::numeric_limits<double>::quiet_NaN();
 
-// The least-squares line of y against x over rows [first, n), as a Trend over `window`: the change
-// slope x window and its standard error, relative to |mean y| when `relative` (critical.hpp).
-Trend trend(std::span<const double> x, std::span<const double> y, std::size_t first, double window, bool relative) {
+// The least-squares line of y against x over rows [first, n), as a Trend over the test's window: the
+// change slope x window and its standard error, relative to |mean y| when `relative` (critical.hpp).
+Trend trend(std::span<const double> x, std::span<const double> y, std::size_t first, const CriticalTest& test,
+            bool relative) {
+  const double window = test.window;
   const std::size_t n = x.size();
   const double count = static_cast<double>(n - first);
   double mx = 0.0, my = 0.0;
@@ -41,7 +43,9 @@ Trend trend(std::span<const double> x, std::span<const double> y, std::size_t fi
   const double r1 = ss > 0.0 ? std::clamp(lag / ss, 0.0, 0.99) : 0.0;
   const double se_slope = std::sqrt(ss / (count - 2.0) / sxx) * std::sqrt((1.0 + r1) / (1.0 - r1));
   const double scale = relative && my != 0.0 ? std::abs(my) : 1.0;
-  return Trend{std::abs(slope * window) / scale, se_slope * window / scale};
+  const double n_eff = count * (1.0 - r1) / (1.0 + r1);
+  return Trend{std::abs(slope * window) / scale, se_slope * window / scale, n_eff,
+               n_eff >= test.min_effective_rows ? 2.0 : test.short_window_se};
 }
 
 }  // namespace
@@ -67,11 +71,11 @@ CriticalCheck check_critical(const CriticalSeries& s, const CriticalTest& test) 
   // eta of the window's rows only (an output-step cost: the window, not the whole history).
   std::vector<double> eta(n - first);
   for (std::size_t k = first; k < n; ++k) eta[k - first] = s.q[k] / s.p[k];
-  out.eta = trend(s.eps_q.subspan(first), eta, 0, test.window, true);
-  out.p = trend(s.eps_q, s.p, first, test.window, true);
-  out.e = trend(s.eps_q, s.e, first, test.window, false);
-  out.z = trend(s.eps_q, s.z_mech, first, test.window, true);
-  out.fabric = trend(s.eps_q, s.fabric_anisotropy, first, test.window, true);
+  out.eta = trend(s.eps_q.subspan(first), eta, 0, test, true);
+  out.p = trend(s.eps_q, s.p, first, test, true);
+  out.e = trend(s.eps_q, s.e, first, test, false);
+  out.z = trend(s.eps_q, s.z_mech, first, test, true);
+  out.fabric = trend(s.eps_q, s.fabric_anisotropy, first, test, true);
   // NaN (a series that is not finite, or a history from before these columns) fails every comparison.
   out.reached = out.eta.ok(test.tolerance) && out.p.ok(test.tolerance) && out.z.ok(test.tolerance) &&
                 out.e.ok(test.tolerance_e) && out.fabric.ok(test.tolerance_fabric);

@@ -19,6 +19,11 @@
 // The standard error: rows 50 steps apart are serially correlated, so the least-squares error of
 // the slope is inflated by sqrt((1 + r1) / (1 - r1)), r1 the lag-1 autocorrelation of the
 // residuals clipped to [0, 0.99] (the AR(1) effective sample size).
+// Version 3 of the test (this one): where the window holds fewer than `min_effective_rows`
+// effective rows, n_eff = n (1 - r1) / (1 + r1), the change must be below the tolerance by
+// `short_window_se` (6) standard errors instead of 2: there the AR(1) error is as little as a third
+// of the truth, and 2 of them let through 8.4 % of series drifting by 1.5 tolerances (6: at most
+// 2.4 %; experiments/2026-11-29-rule-check).
 // F_a = sqrt(F':F'), F' = 15/2 (phi - tr(phi)/3 I), phi = <n (x) n> the contact fabric: the
 // anisotropy coefficient of the contact normal density (1 + F'_ij n_i n_j) / 4 pi (Li & Dafalias
 // 2012's normalization).
@@ -36,14 +41,19 @@ struct CriticalTest {
   double tolerance_fabric = 0.05;  // -, largest relative change (+ 2 SE) of F_a over the window
   double pre_strain = 0.2;         // -, eps_q: the test must have reached window + pre_strain
   std::size_t min_rows = 10;       // rows in the window
+  double min_effective_rows = 10.0;  // n_eff below which the change needs short_window_se errors to spare
+  double short_window_se = 6.0;      // standard errors to spare in such a window (2 above it)
 };
 
 /// One quantity's trend over the window: the fitted line's change (relative or absolute, as its
-/// tolerance) and the standard error of that change (AR(1)-inflated).
+/// tolerance), the standard error of that change (AR(1)-inflated), the window's effective row count
+/// and the errors to spare that it asks for (2, or CriticalTest::short_window_se).
 struct Trend {
   double change = 0.0;
   double se = 0.0;
-  bool ok(double tolerance) const { return change + 2.0 * se <= tolerance; }  // NaN: not ok
+  double n_eff = 0.0;
+  double k = 2.0;
+  bool ok(double tolerance) const { return change + k * se <= tolerance; }  // NaN: not ok
 };
 
 struct CriticalCheck {
