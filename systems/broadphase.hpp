@@ -55,6 +55,9 @@ struct BroadphaseScratch {
   double cutoff = 0.0;                          // m, 2 r_max + skin of the last build
   double r_min = 0.0;                           // m, smallest radius (0: not yet known)
   std::uint64_t builds = 0;                     // neighbour-list builds so far
+  std::vector<Vec3> reference_reduced;          // (n) -, H_ref^-1 x_ref: the build's positions in reduced
+                                                //   coordinates, only while the cell is tilted
+  std::uint64_t reduced_for_build = 0;          // the build reference_reduced belongs to
 };
 
 /// The components of every per-contact history (components/fields.hpp).
