@@ -93,11 +93,16 @@ def main(argv=None):
                           f"v2 {r['v2_accepts']:.3f} proposal {r['proposal_accepts']:.3f} "
                           f"n_eff {r['neff_median']:.1f} guarded {r['guarded_accepts']:.3f} "
                           f"widened {r['widened_accepts']:.3f}")
-    with open(a.out, "w", newline="") as fh:
+    write_rows(a.out, rows)
+    return 0
+
+
+def write_rows(path, rows):
+    """rows (dicts with the same keys) as a CSV with a header (study_windows.py's too)."""
+    with open(path, "w", newline="") as fh:
         w = csv.DictWriter(fh, fieldnames=list(rows[0]), lineterminator="\n")
         w.writeheader()
         w.writerows(rows)
-    return 0
 
 
 if __name__ == "__main__":

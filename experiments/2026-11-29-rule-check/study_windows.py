@@ -1,7 +1,7 @@
 """Version 2 and version 3 of the critical-state rule on the paper-faster study's end windows, from its
 committed SE tables (no results file needed; the study's files are gone with their machine).
 
-    /usr/bin/python3 experiments/2026-11-29-rule-check/study_windows.py \
+    PYTHONPATH=apps/analysis /usr/bin/python3 experiments/2026-11-29-rule-check/study_windows.py \
         [--out experiments/2026-11-29-rule-check/study_windows.csv]
 
 Reads experiments/2026-11-29-paper-faster/se_methods.csv (window eps_q 0.4-0.5) and se_methods-08.csv
@@ -15,6 +15,8 @@ import argparse
 import csv
 import os
 from collections import defaultdict
+
+from rule_check import write_rows  # this folder's (the script's directory is on sys.path)
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 STUDY = os.path.join(HERE, "..", "2026-11-29-paper-faster")
@@ -55,10 +57,7 @@ def main(argv=None):
             if r["v2"]:
                 print(f"  v2 passes {r['test']}: v3 {r['v3']}, n_eff " +
                       ", ".join(f"{k[6:]} {v}" for k, v in r.items() if k.startswith("n_eff_")))
-    with open(a.out, "w", newline="") as fh:
-        w = csv.DictWriter(fh, fieldnames=list(rows[0]), lineterminator="\n")
-        w.writeheader()
-        w.writerows(rows)
+    write_rows(a.out, rows)
     return 0
 
 
