@@ -2,7 +2,8 @@
 
     PYTHONPATH=apps/analysis /usr/bin/python3 experiments/2026-11-29-validate-faster/compare.py [WORKDIR] \
         [--tests experiments/2026-11-29-validate-faster/tests.csv] \
-        [--out experiments/2026-11-29-validate-faster/compare.csv]
+        [--out experiments/2026-11-29-validate-faster/compare.csv] \
+        [--slower-out experiments/2026-11-29-validate-faster/compare-slower.csv]
 
 WORKDIR is run.sh's: {paper,paper-faster}-s{2017,2018,2019}-p0_{500,16000}kPa-b{0,0.5}/, each with its one
 constant-p test. The campaign outlives the machines it runs on (each session may start on a fresh one, and
@@ -11,6 +12,10 @@ found in WORKDIR is measured from its file and its row replaced; the rows of tes
 kept. Each row carries the test's last state digest, so `triaxial verify` of a re-run checks it bitwise, and
 the build that ran it (the first line of WORKDIR/BUILD.txt, run.sh's: the commit it was built from). Each
 paper-faster test pairs with the paper-protocol test of its own sample. Writes one row per (p0, b, measure).
+
+The slower shear's validation (run.sh's third stage; README, fixed before its data) is compared the same
+way into --slower-out: protocol paper-faster-i1.0e-3 (I = 1e-3) against the paper's, b = 0.5 at both p,
+seeds 2019-2021.
 
 Measures: over the last 0.1 of eps_q (the decisive experiment's analyze.one_test) the mean e and q/p; q/p at
 eps_q = 0.02; the peak q/p; the steps taken.
@@ -40,6 +45,8 @@ from seeds import judge, paired, write_rows  # noqa: E402  (the same criterion a
 
 SEEDS = (2017, 2018, 2019)
 CASES = [(p, b) for p in ("500kPa", "16000kPa") for b in ("0", "0.5")]
+SLOW, SLOW_SEEDS = "paper-faster-i1.0e-3", (2019, 2020, 2021)
+SLOW_CASES = [(p, "0.5") for p in ("500kPa", "16000kPa")]
 MEASURES = ("e", "eta", "eta_2pct", "peak_eta")
 KEY = ("protocol", "seed", "p0", "b")
 
@@ -89,12 +96,12 @@ def read_tests(path):
 def update_tests(work, path):
     """Measures every test of WORKDIR into tests.csv (rows of other machines kept); returns all rows by key."""
     tests = read_tests(path)
-    for protocol in ("paper", "paper-faster"):
-        for seed in SEEDS:
-            for p0, b in CASES:
-                m = measures(work, protocol, seed, p0, b) if work else None
-                if m is not None and m["ok"]:
-                    tests[(protocol, seed, p0, b)] = m
+    wanted = {(pr, seed, p0, b) for pr in ("paper", "paper-faster") for seed in SEEDS for p0, b in CASES}
+    wanted |= {(pr, seed, p0, b) for pr in ("paper", SLOW) for seed in SLOW_SEEDS for p0, b in SLOW_CASES}
+    for key in sorted(wanted) if work else ():
+        m = measures(work, *key)
+        if m is not None and m["ok"]:
+            tests[key] = m
     if tests:
         write_rows(path, [tests[k] for k in sorted(tests, key=lambda k: (k[1], k[0], k[2], k[3]))])
     return tests
@@ -105,14 +112,24 @@ def main(argv=None):
     ap.add_argument("work", nargs="?", help="run.sh's WORKDIR (omit to compare tests.csv's rows alone)")
     ap.add_argument("--tests", default=os.path.join(HERE, "tests.csv"))
     ap.add_argument("--out", default=os.path.join(HERE, "compare.csv"))
+    ap.add_argument("--slower-out", default=os.path.join(HERE, "compare-slower.csv"))
     a = ap.parse_args(argv)
     tests = update_tests(a.work, a.tests)
+    write_rows(a.out, compare(tests, "paper-faster", SEEDS, CASES))
+    slower = compare(tests, SLOW, SLOW_SEEDS, SLOW_CASES)
+    if any(r["pairs"] for r in slower):
+        write_rows(a.slower_out, slower)
+    return 0
+
+
+def compare(tests, faster, seeds, cases):
+    """One row per (p0, b, measure): protocol `faster` against the paper's over `seeds`, by the criterion."""
     rows = []
-    for p0, b in CASES:
+    for p0, b in cases:
         pairs = []
-        for seed in SEEDS:
+        for seed in seeds:
             ref = tests.get(("paper", seed, p0, b))
-            fast = tests.get(("paper-faster", seed, p0, b))
+            fast = tests.get((faster, seed, p0, b))
             # One build's pair: another build's stress sums round otherwise, so its sample is another.
             if ref and fast and ref["ok"] and fast["ok"] and ref["build"] == fast["build"]:
                 pairs.append((seed, ref, fast))
@@ -124,10 +141,9 @@ def main(argv=None):
                              steps_paper=int(sum(f["steps"] for _, f, _ in pairs)),
                              steps_faster=int(sum(g["steps"] for _, _, g in pairs))))
             r = rows[-1]
-            print(f"{p0} b {b} {m:8s}: n {n}, paper {r['paper_mean']:.4f}, D {d:+.4f} +- {se:.4f}, "
+            print(f"{faster} {p0} b {b} {m:8s}: n {n}, paper {r['paper_mean']:.4f}, D {d:+.4f} +- {se:.4f}, "
                   f"seed SD {s:.4f}: {r['verdict']}; steps {r['steps_paper']} -> {r['steps_faster']}")
-    write_rows(a.out, rows)
-    return 0
+    return rows
 
 
 if __name__ == "__main__":
