@@ -517,9 +517,9 @@ void Broadphase::run(const Model& model, State& state, Scratch& scratch, Executo
       // Frobenius norm times |r|.
       const double stretch = (cell.h() * Cell::upper(ref_length, ref_tilt).inverse() - Mat3::Identity()).norm();
       // H (H^-1 x - s_ref) = x - H s_ref, s_ref = H_ref^-1 x_ref fixed from one build to the next:
-      // reduced once per build, not twice per particle per step (the three divisions of each
-      // reduction were 13 % of a free-cell triaxial test's time; the test's d differs from the
-      // reduced form's by round-off only).
+      // reduced once per build, not twice per particle per step (six divisions a particle: the
+      // rebuild test was 12.8 % of a free-cell triaxial test's time under perf,
+      // experiments/2026-11-29-tilted-rebuild); d differs from the reduced form's by round-off only.
       if (bp.reference_reduced.size() != x.size() || bp.reduced_for_build != bp.builds) {
         bp.reference_reduced.resize(x.size());
         Vec3* s = bp.reference_reduced.data();
