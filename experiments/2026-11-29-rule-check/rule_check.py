@@ -15,8 +15,9 @@ AR(1)-inflated SE, r1 clipped at 0.99: the rule's own).
 - the proposal: accept iff |change| <= 2 SE (eta refused only for a significant trend);
 - v2 guarded: v2, and the window's effective row count n (1 - r1) / (1 + r1) >= 10 (NEFF_MIN): a window
   holding too few independent rows for its SE to be trusted is refused;
-- v2 widened: |change| + k SE <= 1 with k = 2 where n_eff >= NEFF_MIN and k = 6 below it (the AR(1) SE
-  is down to ~1/3 of the truth there: se_over_tau), so a short window can still pass a small change.
+- v2 widened (version 3, critical.errors_to_spare): |change| + k SE <= 1 with k = 2 where
+  n_eff >= NEFF_MIN and k = 6 below it (the AR(1) SE is down to ~1/3 of the truth there:
+  se_over_tau), so a short window can still pass a small change.
 The grid spans what the paper-faster study measured for eta over its last 0.1 of eps_q (0.8 run:
 r1 0.86-0.99, 2 SE 0.41-5.5 tolerances, ~100-400 rows in a window).
 """
@@ -33,7 +34,7 @@ ROWS = (100, 300)
 PHI = (0.9, 0.97, 0.99, 0.998)
 TAU = (0.25, 0.5, 1.0, 2.0)
 DRIFT = (0.0, 0.5, 1.5, 2.0)
-NEFF_MIN = 10.0
+NEFF_MIN = critical.V3_DEFAULTS["neff_min"]  # 10, fixed before the 4,000-series runs
 
 
 def ar1(rng, phi, n, reps):
@@ -75,9 +76,9 @@ def main(argv=None):
                     r1 = np.array([f[2] for f in fits])
                     v2 = np.abs(change) + 2 * se <= 1.0
                     proposal = np.abs(change) <= 2 * se
-                    neff = n * (1.0 - r1) / (1.0 + r1)
+                    neff = critical.effective_rows(n, r1)
                     guarded = v2 & (neff >= NEFF_MIN)
-                    widened = np.abs(change) + np.where(neff >= NEFF_MIN, 2.0, 6.0) * se <= 1.0
+                    widened = np.abs(change) + critical.errors_to_spare(neff) * se <= 1.0
                     rows.append(dict(rows=n, phi=phi, tau=tau, drift=drift, reps=a.reps,
                                      se_median=round(float(np.median(se)), 4),
                                      se_over_tau=round(float(np.median(se)) / tau, 4),

@@ -17,11 +17,12 @@ import os
 from collections import defaultdict
 
 from rule_check import write_rows  # this folder's (the script's directory is on sys.path)
+from sandcell_analysis import critical
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 STUDY = os.path.join(HERE, "..", "2026-11-29-paper-faster")
 WINDOWS = (("0.4-0.5", "se_methods.csv"), ("0.7-0.8", "se_methods-08.csv"))
-NEFF_MIN, K_SHORT = 10.0, 6.0
+NEFF_MIN = critical.V3_DEFAULTS["neff_min"]
 
 
 def main(argv=None):
@@ -42,9 +43,9 @@ def main(argv=None):
             v2 = v3 = True
             for k, r in q.items():
                 change, two_se, r1 = float(r["change"]), float(r["ar1"]), float(r["r1"])
-                neff = n * (1 - r1) / (1 + r1)
+                neff = critical.effective_rows(n, r1)
                 v2 &= change + two_se <= 1.0
-                v3 &= change + (two_se if neff >= NEFF_MIN else K_SHORT / 2 * two_se) <= 1.0
+                v3 &= change + critical.errors_to_spare(neff) / 2 * two_se <= 1.0
                 row[f"n_eff_{k}"] = round(neff, 1)
             row.update(v2=v2, v3=v3)
             rows.append(row)

@@ -17,6 +17,16 @@ def command(name):
     return [sys.executable, "-m", "sandcell_analysis", name]
 
 
+def ar1(rng, n, phi, sd):
+    """AR(1) noise of lag-1 correlation phi and stationary standard deviation sd."""
+    z = rng.normal(0.0, sd * np.sqrt(1 - phi ** 2), n)
+    out = np.empty(n)
+    out[0] = rng.normal(0.0, sd)
+    for k in range(1, n):
+        out[k] = phi * out[k - 1] + z[k]
+    return out
+
+
 def within(tc, value, truth, se, n_se, abs_bound, what):
     """value must be within n_se reported standard errors AND within abs_bound of the truth.
 

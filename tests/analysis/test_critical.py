@@ -5,18 +5,9 @@ import unittest
 
 import numpy as np
 
+from helpers import ar1
 from sandcell_analysis import critical
 from sandcell_analysis import m_theta
-
-
-def ar1(rng, n, phi, sd):
-    """AR(1) noise of lag-1 correlation phi and stationary standard deviation sd."""
-    z = rng.normal(0.0, sd * math.sqrt(1 - phi ** 2), n)
-    out = np.empty(n)
-    out[0] = rng.normal(0.0, sd)
-    for k in range(1, n):
-        out[k] = phi * out[k - 1] + z[k]
-    return out
 
 
 def fabric_of(a, n):

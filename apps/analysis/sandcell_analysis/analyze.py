@@ -103,7 +103,7 @@ import time
 import numpy as np
 from scipy import stats
 
-from .critical import (APP_CRITERION_V1, V2_DEFAULTS, V3_DEFAULTS, detect_critical, detect_critical_v1,
+from .critical import (APP_CRITERION_V1, CRITERIA, V3_DEFAULTS, detect_critical, detect_critical_v1,
                        first_critical_row)
 from .csl import csl_e, distinct_levels, fit_csl
 from .dilatancy import (M_STUDY, dilatancy_g, dilatancy_li3d, fit_g_form, fit_li_dafalias, fit_m_pt,
@@ -286,9 +286,14 @@ def cross_validate_3d(tests, groups):
                          "(fit on constant p, predict constant sigma3, and the reverse)"}
 
 
+def _criterion(opt):
+    """The version --criterion names (v3 when opt has none: callers that build opt themselves)."""
+    return getattr(opt, "criterion", "v3")
+
+
 def _k_short(opt):
-    """Standard errors to spare in a window of few effective rows: version 3's 6, or 2 (version 2)."""
-    return (V2_DEFAULTS if getattr(opt, "criterion", "v3") == "v2" else V3_DEFAULTS)["k_short"]
+    """Standard errors to spare in a window of few effective rows, as the version asks."""
+    return CRITERIA[_criterion(opt)]["k_short"]
 
 
 def analyze_tests(tests, opt):
@@ -691,7 +696,7 @@ def write_report(path, tests, res, opt, files, skipped):
         add(f"- skipped `{f}`: {why}")
     add("")
     add(f"Options: window {opt.window:g} of eps_q, pre-strain {opt.pre_strain:g}, "
-        f"min rows {opt.min_points}, criterion {getattr(opt, 'criterion', 'v3')}, "
+        f"min rows {opt.min_points}, criterion {_criterion(opt)}, "
         f"tolerances (change + 2 SE; 6 SE below 10 effective rows in v3) eta {opt.tol_eta:g}, p {opt.tol_p:g}, "
         f"Z_mech {opt.tol_z:g}, F_a {opt.tol_fabric:g} (relative), e {opt.tol_e:g}"
         + (f", eps_v {opt.tol_epsv:g}" if opt.tol_epsv else "") + " (absolute); "
@@ -730,7 +735,7 @@ def write_report(path, tests, res, opt, files, skipped):
     add("")
 
     add("## 1. Tests\n")
-    add(f"The critical state is found after the fact on the whole test (version {_k_short(opt) == 2.0 and 2 or 3}; "
+    add(f"The critical state is found after the fact on the whole test (version {_criterion(opt)[1]}; "
         "`critical.py`), never "
         "by first passage: over the last "
         f"{opt.window:g} of eps_q (the test must have run to eps_q >= {opt.window + opt.pre_strain:g}, "
@@ -1115,7 +1120,7 @@ def parse_args(argv):
                     help="title of the report and the figures")
     g = ap.add_argument_group("critical state (version 3, after the fact on the whole test)")
     D = V3_DEFAULTS
-    g.add_argument("--criterion", choices=("v3", "v2"), default="v3",
+    g.add_argument("--criterion", choices=tuple(CRITERIA), default="v3",
                    help="v3: 6 standard errors to spare where a window holds fewer than 10 effective rows, "
                    "2 elsewhere (default); v2: 2 everywhere (the test before 2026-11-29)")
     g.add_argument("--window", type=_positive, default=D["window"], metavar="W",

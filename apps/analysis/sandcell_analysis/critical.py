@@ -53,6 +53,20 @@ V3_DEFAULTS = dict(window=0.1, pre_strain=0.2, min_points=10, tol_eta=0.02, tol_
                    tol_z=0.02, tol_fabric=0.05, tol_epsv=None, neff_min=10.0, k_short=6.0)
 # Version 2: two standard errors whatever the window's effective row count.
 V2_DEFAULTS = dict(V3_DEFAULTS, k_short=2.0)
+# detect_critical's keywords by version name (analyze's and replay-critical's --criterion).
+CRITERIA = {"v3": V3_DEFAULTS, "v2": V2_DEFAULTS}
+
+
+def effective_rows(n, r1):
+    """The AR(1) effective row count of n serially correlated rows, r1 their lag-1 autocorrelation
+    (scalars or arrays)."""
+    return n * (1.0 - r1) / (1.0 + r1)
+
+
+def errors_to_spare(n_eff, neff_min=V3_DEFAULTS["neff_min"], k_short=V3_DEFAULTS["k_short"]):
+    """Standard errors a change must leave below its tolerance: 2, or k_short in a window of fewer
+    than neff_min effective rows (version 3; k_short = 2 is version 2). Scalars or arrays."""
+    return np.where(np.asarray(n_eff) >= neff_min, 2.0, k_short)
 
 
 def fabric_anisotropy(fabric):
@@ -187,8 +201,8 @@ def detect_critical(x, series, window=0.1, tol_eta=0.02, tol_p=0.02, tol_e=0.005
         change = slope * window
         measure = abs(change) / scale
         se_measure = se_slope * window / scale
-        n_eff = n * (1.0 - r1) / (1.0 + r1)
-        k = 2.0 if n_eff >= neff_min else k_short
+        n_eff = effective_rows(n, r1)
+        k = float(errors_to_spare(n_eff, neff_min, k_short))
         bound = measure + k * se_measure
         ok = bool(bound <= tol)
         out["checks"][name] = {"slope": slope, "change": change, "se_change": se_slope * window, "r1": r1,
@@ -280,8 +294,8 @@ def first_critical_row(x, series, criterion="v3", **kw):
     if criterion == "v1":
         test, kw = detect_critical_v1, dict(APP_CRITERION_V1, **kw)
         keys = ("p", "q", "eta", "e", "eps_v")
-    elif criterion in ("v3", "v2"):
-        test, kw = detect_critical, dict(APP_CRITERION if criterion == "v3" else V2_DEFAULTS, **kw)
+    elif criterion in CRITERIA:
+        test, kw = detect_critical, dict(CRITERIA[criterion], **kw)
         series = with_fabric_anisotropy(series)
         keys = ("p", "q", "eta", "e", "eps_v", "Z_mech", "F_a")
     else:

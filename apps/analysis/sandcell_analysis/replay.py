@@ -19,8 +19,8 @@ import sys
 
 import numpy as np
 
-from .critical import (APP_CRITERION, APP_CRITERION_V1, V2_DEFAULTS, detect_critical, detect_critical_v1,
-                       first_critical_row, with_fabric_anisotropy)
+from .critical import (APP_CRITERION_V1, CRITERIA, detect_critical, detect_critical_v1, first_critical_row,
+                       with_fabric_anisotropy)
 from .results import InputError, read_columns
 
 PROG = os.environ.get("SANDCELL_ANALYZE_PROG", "replay-critical")
@@ -39,7 +39,7 @@ def replay(path, window=None, tol_eta=None, tol_p=None, tol_e=None, criterion="v
     else:
         if "eps_q" not in s:
             raise InputError(f"cannot read {path}: /series lacks eps_q (the version {criterion[1]} test's strain)")
-        base, test, x = APP_CRITERION if criterion == "v3" else V2_DEFAULTS, detect_critical, s["eps_q"]
+        base, test, x = CRITERIA[criterion], detect_critical, s["eps_q"]
         series.update({k: s[k] for k in ("Z_mech", "fabric") if k in s})
         series = with_fabric_anisotropy(series)
         series.pop("fabric", None)
