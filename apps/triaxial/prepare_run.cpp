@@ -281,8 +281,8 @@ struct Trial {
 // regula falsi (the Illinois variant: the retained end's weight halved, so it never stalls) on
 // trial preparations of prepare.trial_count spheres (the sample's own spheres when it has no more),
 // until a trial lands within half the tolerance. A sample larger than its trials is then prepared
-// at that friction; if its e0 misses the tolerance (a larger cell's e0 differs from a trial's by a
-// few 1e-3), up to three secant steps at full size follow, along the trials' slope de0/df. The trials
+// at that friction; if its e0 misses the tolerance, the trials are searched again for the target
+// shifted by the full-size miss (below), up to four full-size preparations in all. The trials
 // (directory target_e0-<p0>/, and target_e0-<p0>.csv: friction, spheres, e0) stay as the record.
 // A target outside the range the two ends reach (by more than the tolerance) throws
 // UnreachableTarget naming the key and the range: bad input, exit 2.
@@ -332,40 +332,87 @@ bool Runner::prepare_to_target(double p0, Summary& summary, const fs::path& samp
                             num(pc.max_friction) + ", " + std::to_string(trial_count) +
                             "-sphere trials in " + dir.string() + "); allowed: a target in that range, or a larger "
                             "prepare.max_friction (or prepare.rolling_friction) for looser samples");
-  // Regula falsi (Illinois) on g(f) = e0(f) - target.
-  Trial best = std::abs(lo.e0 - target) <= std::abs(hi.e0 - target) ? lo : hi;
-  double wlo = 1.0, whi = 1.0;  // Illinois weights of the two ends
-  int side = 0;                 // which end the last step replaced (-1 lo, +1 hi)
-  for (int k = 0; k < 12 && std::abs(best.e0 - target) > 0.5 * tol && hi.friction - lo.friction > 1e-4; ++k) {
-    const double glo = wlo * (lo.e0 - target), ghi = whi * (hi.e0 - target);
-    double f = (lo.friction * ghi - hi.friction * glo) / (ghi - glo);
-    f = std::clamp(f, lo.friction + 0.02 * (hi.friction - lo.friction), hi.friction - 0.02 * (hi.friction - lo.friction));
-    const Trial t = run_trial(f, trial_count);
-    if (std::abs(t.e0 - target) < std::abs(best.e0 - target)) best = t;
-    if (t.e0 < target) {
-      lo = t;
-      wlo = 1.0;
-      if (side == -1) whi *= 0.5;
-      side = -1;
-    } else {
-      hi = t;
-      whi = 1.0;
-      if (side == +1) wlo *= 0.5;
-      side = +1;
+  // Regula falsi (Illinois) on g(f) = e0(f) - t over the trials of trial size, for a trial-size target
+  // t: the bracket is the tightest the trials so far give (the largest friction below t, the smallest
+  // above it), the result the trial closest to t (within half the tolerance unless the bracket
+  // closed or 12 steps passed).
+  const auto search = [&](double t) -> Trial {
+    const Trial* below = nullptr;
+    const Trial* above = nullptr;
+    for (const Trial& x : trials)
+      if (x.count == trial_count && x.e0 < t && (!below || x.friction > below->friction)) below = &x;
+    for (const Trial& x : trials)
+      if (x.count == trial_count && x.e0 >= t && (!below || x.friction > below->friction) &&
+          (!above || x.friction < above->friction))
+        above = &x;
+    Trial best_t{};
+    bool any = false;
+    for (const Trial& x : trials)
+      if (x.count == trial_count && (!any || std::abs(x.e0 - t) < std::abs(best_t.e0 - t))) best_t = x, any = true;
+    if (!below || !above) return best_t;  // t beyond the trials' range: the nearest end
+    Trial lo = *below, hi = *above;
+    double wlo = 1.0, whi = 1.0;  // Illinois weights of the two ends
+    int side = 0;                 // which end the last step replaced (-1 lo, +1 hi)
+    for (int k = 0; k < 12 && std::abs(best_t.e0 - t) > 0.5 * tol && hi.friction - lo.friction > 1e-4; ++k) {
+      const double glo = wlo * (lo.e0 - t), ghi = whi * (hi.e0 - t);
+      double f = (lo.friction * ghi - hi.friction * glo) / (ghi - glo);
+      f = std::clamp(f, lo.friction + 0.02 * (hi.friction - lo.friction), hi.friction - 0.02 * (hi.friction - lo.friction));
+      const Trial x = run_trial(f, trial_count);
+      if (std::abs(x.e0 - t) < std::abs(best_t.e0 - t)) best_t = x;
+      if (x.e0 < t) {
+        lo = x;
+        wlo = 1.0;
+        if (side == -1) whi *= 0.5;
+        side = -1;
+      } else {
+        hi = x;
+        whi = 1.0;
+        if (side == +1) wlo *= 0.5;
+        side = +1;
+      }
     }
-  }
-  const double slope = (hi.e0 - lo.e0) / (hi.friction - lo.friction);  // de0/df over the last bracket
-  // Full size: the best trial's friction, then secant steps along the trials' slope.
+    return best_t;
+  };
+  Trial best = search(target);
+  // Full size: a larger cell's e0 differs from a trial's at the same friction by a few 1e-3 (the
+  // size effect and another packing). Each full-size preparation measures that shift at its
+  // friction, and the next friction is the trials' for the target less the shift; once full-size
+  // samples bracket the target, the interpolation between the two nearest. Up to four full-size
+  // preparations; a friction already prepared at full size is not prepared again (the same bits):
+  // the search stops there.
+  double shift = 0.0;  // full-size e0 minus trial-size e0 at the same friction
+  std::vector<Trial> full;
+  double closest = best.e0;  // the full-size e0 nearest the target (the trial's while there is none)
   for (int k = 0; k < 4 && best.count < count; ++k) {
-    const double f = k == 0 ? best.friction : std::clamp(trials.back().friction + (target - trials.back().e0) / slope,
-                                                         0.0, pc.max_friction);
+    const Trial* below = nullptr;
+    const Trial* above = nullptr;
+    for (const Trial& x : full)
+      if (x.e0 < target && (!below || x.friction > below->friction)) below = &x;
+    for (const Trial& x : full)
+      if (x.e0 >= target && (!below || x.friction > below->friction) && (!above || x.friction < above->friction))
+        above = &x;
+    const double f = k == 0             ? best.friction
+                     : below && above ? below->friction + (target - below->e0) * (above->friction - below->friction) /
+                                                               (above->e0 - below->e0)
+                                      : search(target - shift).friction;
+    if (std::any_of(full.begin(), full.end(), [&](const Trial& x) { return std::abs(x.friction - f) <= 1e-9; })) break;
+    // The trial-size e0 at f: the trial there if any (the search's result), else none (no shift update).
+    const auto at = std::find_if(trials.begin(), trials.end(),
+                                 [&](const Trial& x) { return x.count == trial_count && x.friction == f; });
+    const double e_trial = at == trials.end() ? std::nan("") : at->e0;
     const Trial t = run_trial(f, count);
-    if (std::abs(t.e0 - target) <= tol) best = t;  // a full-size sample within tolerance ends the loop
+    full.push_back(t);
+    if (std::abs(t.e0 - target) <= tol) {  // a full-size sample within tolerance ends the search
+      best = t;
+      break;
+    }
+    if (full.size() == 1 || std::abs(t.e0 - target) < std::abs(closest - target)) closest = t.e0;
+    if (std::isfinite(e_trial)) shift = t.e0 - e_trial;
   }
   if (best.count < count || std::abs(best.e0 - target) > tol)
     throw SimulationError("prepare-" + tag + ": prepare.target_e0 = " + num(target) + " not reached within " +
                           num(tol) + " after " + std::to_string(trials.size()) + " preparations (closest e0 = " +
-                          num(best.e0, "%.4f") + "; trials in " + (plan_.out / ("target_e0-" + tag + ".csv")).string() +
+                          num(closest, "%.4f") + (best.count < count ? " at full size" : "") + "; trials in " + (plan_.out / ("target_e0-" + tag + ".csv")).string() +
                           "); allowed: a larger prepare.target_e0_tolerance or prepare.trial_count");
   fs::copy_file(best.sample, sample, fs::copy_options::overwrite_existing);
   summary = sample_summary(p0);

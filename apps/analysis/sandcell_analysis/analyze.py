@@ -183,7 +183,7 @@ def _group_states(tests, csl, opt):
     return out
 
 
-def _characteristic_state(t, slope):
+def characteristic_state(t, slope):
     """The test's state for m: its phase transformation (d = 0) where d turns before the peak of eta
     (past it d crosses 0 by noise at the critical state, psi ~ 0: not a phase transformation), else its peak stress
     ratio (the largest smoothed eta among the kept points) with eta* = eta - d/s (s < 0: the
@@ -387,7 +387,7 @@ def analyze_tests(tests, opt):
     states = []
     for t in tests:
         g = groups.get((t["path"], b_key(t)))
-        t["state_m"] = _characteristic_state(t, g["initial_slope"] if g else NAN)
+        t["state_m"] = characteristic_state(t, g["initial_slope"] if g else NAN)
         if t["state_m"] is not None:
             states.append((t, t["state_m"], g["M"] if g else NAN))
     m_fit = fit_m_pt([s["psi"] for _, s, _ in states], [s["eta_star"] for _, s, _ in states],
