@@ -19,8 +19,8 @@ Method, fixed before the data (the package's functions, as `triaxial analyze` us
   test's own moduli, strain-adaptive local quadratics, no strain cut);
 - each test's characteristic state: its phase transformation (d = 0) where d turns before the peak
   of eta (after it d fluctuates about 0 at the critical state), else its peak stress ratio with
-  eta* = eta - d/s, s the initial d-eta slope of the densest tests (as analyze's
-  _characteristic_state, which does not yet restrict the phase transformation to the pre-peak
+  eta* = eta - d/s, s the initial d-eta slope of the densest tests (as analyze.s
+  characteristic_state, which does not yet restrict the phase transformation to the pre-peak
   branch);
 - m by dilatancy.fit_m_pt (ln(eta*/M) = c + m psi; the 95 % profile-likelihood interval; the
   verdict "identified" only when the interval is narrower than 4.57, else "not identifiable").

@@ -1,0 +1,128 @@
+"""m identified at the study's size (issue 45 item 3): 19,436-sphere samples spanning psi0 at one p,
+three seeds; from the committed series alone.
+
+    PYTHONPATH=apps/analysis /usr/bin/python3 experiments/2026-11-29-m-design-19k/analyze.py \
+        [--dir experiments/2026-11-29-m-design-19k]
+
+Reads DIR/tests.csv and DIR/series/*.csv.gz (export.py); writes DIR/states.csv (per test: e0, its
+end window, whether e, p, Z_mech and F_a are steady there, its characteristic state) and DIR/m.json
+(the pooled fit, the verdict, and each seed's fit).
+
+Method, fixed before the data (as experiments/2026-11-28-m-design at 4,000 spheres, with the
+stationarity rule now in force and seeds):
+- tests that ended off their path (status not done) are left out of everything;
+- e_c(0.5 MPa) and M: the means over the end windows (the last 0.1 of eps_q) of the tests whose e,
+  p, Z_mech and F_a are steady there (critical.detect_critical, version 3, eta untested); when none
+  is, the means over every test's end window, flagged "e_c and M from unproven end states". Every
+  test is at p = 0.5 MPa and the fit's intercept is free, so e_c and M move every point's psi and
+  ln(eta*/M) alike: they set psi's scale for the table, not m;
+- plastic dilatancy (dilatancy.plastic_dilatancy: dp/K and dq/3G removed with each test's moduli);
+- each test's characteristic state (analyze.characteristic_state): its phase transformation where d
+  turns before the peak of eta, else its peak with eta* = eta - d/s, s the mean initial d-eta slope
+  of the two densest samples of each seed;
+- m by dilatancy.fit_m_pt over all seeds' states (the verdict: "identified" iff the 95 %
+  profile-likelihood interval is narrower than 4.57, then "consistent with the study" if it contains
+  4.57, "not the study's" if not; else "not identifiable"), and per seed (the seeds' spread, reported
+  beside the pooled interval; a pooled interval much narrower than the seeds' spread would mean the
+  residuals miss a seed effect, and is said).
+"""
+import argparse
+import csv
+import json
+import math
+import os
+import sys
+
+import numpy as np
+
+from sandcell_analysis import critical, dilatancy
+from sandcell_analysis.analyze import characteristic_state
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+sys.path.insert(0, HERE)
+from export import read_series  # noqa: E402  (the experiment's own reader of its series)
+
+
+def load(folder):
+    with open(os.path.join(folder, "tests.csv"), newline="") as fh:
+        rows = list(csv.DictReader(fh))
+    tests = []
+    for r in rows:
+        path = os.path.join(folder, "series", f"s{r['seed']}-e{r['target_e0']}.csv.gz")
+        if not os.path.exists(path):
+            continue
+        s = read_series(path)
+        tests.append({"name": f"s{r['seed']}-e{r['target_e0']}", "seed": int(r["seed"]), "row": r,
+                      "ok": r["status"].startswith("done"), "e0": float(s["e"][0]), "t": s})
+    return tests
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--dir", default=HERE)
+    a = ap.parse_args(argv)
+    tests = [x for x in load(a.dir) if x["ok"]]
+    if not tests:
+        print("no test ended on its path", file=sys.stderr)
+        return 1
+    for x in tests:
+        t = x["t"]
+        series = {k: t[k] for k in ("p", "q", "eta", "e", "Z_mech", "fabric", "stress")}
+        x["check"] = critical.detect_critical(t["eps_q"], series, tol_eta=None)
+        x["steady"] = bool(x["check"]["reached"])
+    steady = [x for x in tests if x["steady"]]
+    basis = steady or tests
+    e_c = float(np.mean([x["check"]["point"]["e"] for x in basis]))
+    M = float(np.mean([x["check"]["point"]["eta"] for x in basis]))
+    caveat = "" if steady else "e_c and M from unproven end states (no test steady at its end)"
+    for x in tests:
+        t = x["t"]
+        dl = dilatancy.plastic_dilatancy(t["eps_v"], t["eps_q"], t["p"], t["q"],
+                                         others={"eta": t["eta"], "e": t["e"], "p": t["p"]})
+        dl["psi"] = dl["e"] - e_c
+        x["dil"] = dl
+    slopes = []
+    for seed in sorted({x["seed"] for x in tests}):
+        dense = sorted((x for x in tests if x["seed"] == seed), key=lambda x: x["e0"])[:2]
+        slopes += [dilatancy.initial_linear_part(x["dil"]["eta"], x["dil"]["d"], x["dil"]["mask"])[1] for x in dense]
+    s = float(np.nanmean(slopes)) if np.any(np.isfinite(slopes)) else math.nan
+    rows = []
+    for x in tests:
+        st = characteristic_state({"dil": x["dil"], "eps_q": x["t"]["eps_q"]}, s)
+        x["state"] = st or {"kind": "none", "eta": math.nan, "psi": math.nan, "eta_star": math.nan, "eps_q": math.nan}
+        pt = x["check"]["point"]
+        rows.append({"test": x["name"], "seed": x["seed"], "e0": x["e0"], "psi0": x["e0"] - e_c,
+                     "steady_end": x["steady"], "e_end": pt["e"], "eta_end": pt["eta"],
+                     "state": x["state"]["kind"], "eps_q_state": x["state"]["eps_q"], "eta_state": x["state"]["eta"],
+                     "psi_state": x["state"]["psi"], "eta_star": x["state"]["eta_star"]})
+
+    def fit(group):
+        use = [x for x in group if math.isfinite(x["state"]["eta_star"])]
+        return dilatancy.fit_m_pt([x["state"]["psi"] for x in use], [x["state"]["eta_star"] for x in use], M)
+
+    pooled = fit(tests)
+    seeds = {str(seed): fit([x for x in tests if x["seed"] == seed]) for seed in sorted({x["seed"] for x in tests})}
+    per_seed = [f["m"] for f in seeds.values() if math.isfinite(f["m"])]
+    spread = float(np.std(per_seed, ddof=1)) if len(per_seed) >= 2 else math.nan
+    out = {"e_c": e_c, "M": M, "n_steady": len(steady), "caveat": caveat, "initial_slope": s,
+           "pooled": pooled, "seeds": seeds, "seed_sd_of_m": spread}
+    with open(os.path.join(a.dir, "states.csv"), "w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=list(rows[0].keys()))
+        w.writeheader()
+        for r in rows:
+            w.writerow({k: (f"{v:.6g}" if isinstance(v, float) else v) for k, v in r.items()})
+    with open(os.path.join(a.dir, "m.json"), "w") as f:
+        json.dump(out, f, indent=1, sort_keys=True, default=float)
+    for r in rows:
+        print(f"{r['test']:12s} e0 {r['e0']:.4f} psi0 {r['psi0']:+.3f} {r['state']:20s} eta* {r['eta_star']:.3f} "
+              f"psi {r['psi_state']:+.3f} steady end {r['steady_end']}")
+    print(f"e_c {e_c:.4f} M {M:.3f} ({len(steady)} steady{'; ' + caveat if caveat else ''}); initial slope {s:.3f}")
+    for name, f in [("pooled", pooled)] + [(f"seed {k}", v) for k, v in seeds.items()]:
+        print(f"{name}: m = {f['m']:.3g}, 95 % [{f['interval'][0]:.3g}, {f['interval'][1]:.3g}] (n {f['n']}, "
+              f"psi span {f['psi_span']:.3f}): {f['verdict']} {f['note']}")
+    print(f"the seeds' m: SD {spread:.3g} against the pooled SE {pooled['se']:.3g}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
