@@ -6,8 +6,9 @@
 # there for this build is not run again, so the campaign spans machines that do not keep WORKDIR.
 # Every run resumes (--resume): rerun the same command after an interruption.
 #   bash experiments/2026-11-29-m-design-19k/run.sh [TRIAXIAL] [WORKDIR] [SEEDS...]
-# (defaults: build/release's triaxial, results/m-design-19k, 2017 2018 2019). ~50 min of both cores
-# per seed on the 2-core host.
+# (defaults: build/release's triaxial, results/m-design-19k, 2017 2018 2019; OUT=DIR in the environment:
+# where tests.csv, series/ and searches/ are kept, default this folder, e.g. a checkout's when the
+# campaign runs a copy of these scripts).
 set -euo pipefail
 experiment="$(cd "$(dirname "$0")" && pwd)"
 here="$(cd "$experiment/../.." && pwd)"
@@ -25,9 +26,10 @@ elif [ ! -s "$work/BUILD.txt" ]; then
   echo unknown > "$work/BUILD.txt"
 fi
 build="$(head -n1 "$work/BUILD.txt")"
+out="${OUT:-$experiment}"
 export PYTHONPATH="$here/apps/analysis${PYTHONPATH:+:$PYTHONPATH}"
 # exported SEED TARGET: tests.csv holds that test, ended, from this build.
-exported() { [ -e "$experiment/tests.csv" ] && grep -q "^$1,$2,.*,$build\$" "$experiment/tests.csv"; }
+exported() { [ -e "$out/tests.csv" ] && grep -q "^$1,$2,.*,$build\$" "$out/tests.csv"; }
 one() {  # one SEED TARGET: prepare and shear one sample (resumable), its log beside its folder
   local dir="$work/s$1-e$2"
   if exported "$1" "$2"; then echo "$(date +%T) s$1-e$2: in tests.csv, not run"; return 0; fi
@@ -43,7 +45,7 @@ for seed in "${seeds[@]}"; do
     one "$seed" "$1" & a=$!
     one "$seed" "$2" & b=$!
     wait $a; wait $b
-    /usr/bin/python3 "$experiment/export.py" "$work"
+    /usr/bin/python3 "$experiment/export.py" "$work" --out "$out"
   done
 done
 echo "$(date +%T) done: $work"

@@ -19,6 +19,7 @@
 # "beyond" iff |D| - 2 SE > s; else "not shown". Measures: e and q/p over the last 0.1 of eps_q,
 # q/p at eps_q = 0.02, the peak q/p, and the steps.
 #   experiments/2026-11-29-validate-faster/run.sh [TRIAXIAL] [WORKDIR] [SAMPLES17] [TESTS]
+# (PAIRED_ONLY=1 in the environment: stages 1 and 2 only.)
 set -euo pipefail
 experiment="$(cd "$(dirname "$0")" && pwd)"
 here="$(cd "$experiment/../.." && pwd)"
@@ -93,6 +94,9 @@ for seed in 2017 2018 2019; do
     wait $a; wait $b
   done
 done
+
+# PAIRED_ONLY=1 stops here (a campaign that queues other work before the third stage).
+if [ "${PAIRED_ONLY:-0}" = 1 ]; then echo "$(date +%T) paired stage done (PAIRED_ONLY=1): $work"; exit 0; fi
 
 # The slower shear for the band (README, "Fixed now for the candidate", before its data): the banded
 # test (b = 0.5) at 0.5 and 16 MPa, sheared at I = 1e-3 and at the paper's rate, seeds 2019-2021. Seed
