@@ -88,17 +88,11 @@ def prepare_friction(sample):
         return float("nan")
 
 
-def build_of(work):
-    path = os.path.join(work, "BUILD.txt")
-    if not os.path.exists(path):
-        return ""
-    with open(path) as fh:
-        return fh.readline().strip()
-
-
 def export(work, out):
     """Exports every ended test of WORKDIR; returns the number exported."""
-    build = build_of(work)
+    stamp = os.path.join(work, "BUILD.txt")  # run.sh's: the commit the campaign's binary was built from
+    with open(stamp) if os.path.exists(stamp) else open(os.devnull) as fh:
+        build = fh.readline().strip()
     tests_csv = os.path.join(out, "tests.csv")
     rows = read_tests(tests_csv)
     os.makedirs(os.path.join(out, "series"), exist_ok=True)
