@@ -3,11 +3,14 @@ free cell, against the 19,436-sphere free cells.
 
     PYTHONPATH=apps/analysis /usr/bin/python3 experiments/2026-11-28-one-csl-decisive/large.py LARGE_OUT REF_ROOT \
         [--out experiments/2026-11-28-one-csl-decisive/large.csv]
+    PYTHONPATH=apps/analysis /usr/bin/python3 experiments/2026-11-28-one-csl-decisive/large.py LARGE8_OUT \
+        experiments/2026-11-28-one-csl-decisive/tests.csv --p0 8000     (writes large-8mpa.csv)
 
 LARGE_OUT is the large run's --out folder (large-s2020.toml); REF_ROOT holds free-s{2017,2018,2019} with the
 19,436-sphere tests as analyze.py reads them (at 0.5 MPa b = 1, the servo-cap re-runs: the merged folder of
 experiments/2026-11-28-servo-cap/rerun.sh, to the same eps_q = 0.6 as the large cell). Writes large.csv (one row per
-large test, analyze.one_test's columns, and the offset lines) and prints the verdicts.
+large test, analyze.one_test's columns, and the offset lines) and prints the verdicts. At 8 MPa (large-8mpa-s2020.toml)
+the reference is the small cells' rows in tests.csv (their files are gone; the same measures, analyze.one_test's).
 
 Criteria, fixed on 2026-11-28 before any of the large cell's shear results was read:
 - entry as in analyze.py: the watchdog's done (it held its path) and e, p, Z_mech, F_a steady over the last 0.1 of
@@ -35,16 +38,28 @@ sys.path.insert(0, HERE)
 import analyze  # noqa: E402
 
 N_REF, N_LARGE = 19436, 155488
-TESTS = ("p-b0.00-p0_500kPa", "p-b0.50-p0_500kPa", "p-b1.00-p0_500kPa")
 
 
-def reference(root):
-    """The 19,436-sphere free-cell tests at 0.5 MPa that held their path to eps_q = 0.6: {b: [e_c, ...]}."""
+def test_names(p0_kpa):
+    return tuple(f"p-b{b:.2f}-p0_{p0_kpa}kPa" for b in (0.0, 0.5, 1.0))
+
+
+def reference(root, p0_kpa=500):
+    """The 19,436-sphere free-cell tests at p0 that held their path to eps_q = 0.6: {b: [e_c, ...]}, from the
+    seeds' results files under ROOT (free-s<seed>/), or from a CSV of their rows (this folder's tests.csv:
+    cell, test, status, eps_q_end, e), for when the files are gone."""
     out = {0.0: [], 0.5: [], 1.0: []}
+    if os.path.isfile(root):
+        with open(root, newline="") as fh:
+            for r in csv.DictReader(fh):
+                if (r["cell"] == "free" and r["test"] in test_names(p0_kpa) and r["status"].startswith("done")
+                        and float(r["eps_q_end"]) >= 0.599):
+                    out[float(r["test"][3:7])].append(float(r["e"]))
+        return out
     for seed in analyze.SEEDS:
         folder = os.path.join(root, f"free-s{seed}")
         status = analyze.index_status(folder)
-        for name in TESTS:
+        for name in test_names(p0_kpa):
             path = os.path.join(folder, name + ".h5")
             if not os.path.exists(path):
                 continue
@@ -63,16 +78,18 @@ def pooled_sd(groups):
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("large")
-    ap.add_argument("reference")
-    ap.add_argument("--out", default=os.path.join(HERE, "large.csv"))
+    ap.add_argument("reference", help="REF_ROOT (the seeds' folders) or a CSV of their rows (tests.csv)")
+    ap.add_argument("--p0", type=int, default=500, help="kPa: 500 (large-s2020.toml) or 8000 (large-8mpa-s2020.toml)")
+    ap.add_argument("--out", default=None, help="default large.csv (500 kPa), large-8mpa.csv (8000 kPa)")
     a = ap.parse_args(argv)
+    out = a.out or os.path.join(HERE, "large.csv" if a.p0 == 500 else f"large-{a.p0 // 1000}mpa.csv")
     status = analyze.index_status(a.large)
     rows = {}
-    for name in TESTS:
+    for name in test_names(a.p0):
         path = os.path.join(a.large, name + ".h5")
         if os.path.exists(path):
             rows[float(name[3:7])] = dict(test=name, **analyze.one_test(path, status.get(name, "running")))
-    ref = reference(a.reference)
+    ref = reference(a.reference, a.p0)
     s = pooled_sd([ref[0.0], ref[1.0]])
     se_l = math.sqrt(2.0) * s * math.sqrt(N_REF / N_LARGE)
     lines = []
@@ -99,7 +116,7 @@ def main(argv=None):
             lines.append(line)
     cols = ["test", "status", "eps_q_end", "critical", "critical_full", "why_not", "e", "e_sd", "p_MPa", "eta",
             "eta_sd", "Z_mech", "Z_mech_sd", "F_a", "F_a_sd", "A", "b_rows"]
-    with open(a.out, "w", newline="") as f:
+    with open(out, "w", newline="") as f:
         w = csv.writer(f, lineterminator="\n")
         w.writerow(cols)
         for b in sorted(rows):
