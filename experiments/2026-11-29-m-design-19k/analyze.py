@@ -60,8 +60,10 @@ def load(folder):
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--dir", default=HERE)
+    ap.add_argument("--seeds", type=int, nargs="*", help="only these seeds (an interim look; the verdict pools all)")
+    ap.add_argument("--out", default=None, help="where states.csv and m.json go (default --dir)")
     a = ap.parse_args(argv)
-    tests = [x for x in load(a.dir) if x["ok"]]
+    tests = [x for x in load(a.dir) if x["ok"] and (not a.seeds or x["seed"] in a.seeds)]
     if not tests:
         print("no test ended on its path", file=sys.stderr)
         return 1
@@ -106,12 +108,13 @@ def main(argv=None):
     spread = float(np.std(per_seed, ddof=1)) if len(per_seed) >= 2 else math.nan
     out = {"e_c": e_c, "M": M, "n_steady": len(steady), "caveat": caveat, "initial_slope": s,
            "pooled": pooled, "seeds": seeds, "seed_sd_of_m": spread}
-    with open(os.path.join(a.dir, "states.csv"), "w", newline="") as f:
+    out_dir = a.out or a.dir
+    with open(os.path.join(out_dir, "states.csv"), "w", newline="") as f:
         w = csv.DictWriter(f, fieldnames=list(rows[0].keys()))
         w.writeheader()
         for r in rows:
             w.writerow({k: (f"{v:.6g}" if isinstance(v, float) else v) for k, v in r.items()})
-    with open(os.path.join(a.dir, "m.json"), "w") as f:
+    with open(os.path.join(out_dir, "m.json"), "w") as f:
         json.dump(out, f, indent=1, sort_keys=True, default=float)
     for r in rows:
         print(f"{r['test']:12s} e0 {r['e0']:.4f} psi0 {r['psi0']:+.3f} {r['state']:20s} eta* {r['eta_star']:.3f} "

@@ -9,7 +9,8 @@ WORKDIR (run.sh's) holds s<seed>-e<target>/ run folders and BUILD.txt. For every
 (done, or failed: a failed test's row says why and keeps it out of the fit), writes
 series/s<seed>-e<target>.csv.gz (the columns analyze.py reads, every series row, 9 significant
 digits), searches/s<seed>-e<target>.csv (the preparation's trials) and its row in tests.csv (rows of
-other machines are kept; a row is replaced only by the same test of the same build).
+other machines are kept; a test already there from the same build with the same status is not
+exported again).
 """
 import argparse
 import csv
