@@ -15,6 +15,7 @@ exported again).
 import argparse
 import csv
 import gzip
+import io
 import os
 import re
 import shutil
@@ -42,7 +43,9 @@ def write_series(h5, out):
     n = len(cols["step"])
     table = np.column_stack([cols[k] for k in SCALARS] + [np.asarray(cols[t]).reshape(n, -1) for t in TENSORS])
     tmp = out + ".tmp"
-    with gzip.open(tmp, "wt", newline="") as fh:
+    # mtime 0 and no file name in the gzip header: the same series gives the same bytes (no churn in git).
+    with open(tmp, "wb") as raw, gzip.GzipFile(filename="", mode="wb", fileobj=raw, mtime=0) as gz, \
+            io.TextIOWrapper(gz, newline="") as fh:
         fh.write(",".join(columns()) + "\n")
         for row in table:
             fh.write(",".join(f"{v:.9g}" for v in row) + "\n")
@@ -110,7 +113,9 @@ def export(work, out):
             continue
         key = (m.group(1), m.group(2))
         old = rows.get(key)
-        if old is not None and old["build"] == build and old["status"] == r["status"]:
+        # A finished test resumed again (run.sh on a machine that kept WORKDIR) says "done (earlier run)".
+        status = r["status"].removesuffix(" (earlier run)")
+        if old is not None and old["build"] == build and old["status"].removesuffix(" (earlier run)") == status:
             continue
         n = write_series(os.path.join(folder, TEST + ".h5"), os.path.join(out, "series", f"{name}.csv.gz"))
         search = os.path.join(folder, "target_e0-p0_500kPa.csv")
@@ -120,8 +125,8 @@ def export(work, out):
         cols = results.read_columns(os.path.join(folder, TEST + ".h5"), ["eps_q", "e"], optional=["state_digest"])
         halves = np.ravel(cols["state_digest"][-1]) if "state_digest" in cols else ()
         rows[key] = {
-            "seed": key[0], "target_e0": key[1], "e0": r["e0"], "status": r["status"],
-            "ok": r["status"].startswith("done"),
+            "seed": key[0], "target_e0": key[1], "e0": r["e0"], "status": status,
+            "ok": status.startswith("done"),
             "prepare_friction": f"{friction:.6g}",
             "eps_q_end": f"{float(cols['eps_q'][-1]):.6g}", "e_end": f"{float(cols['e'][-1]):.6g}",
             "steps": r["steps"], "rows": n, "path_error": r["path_error"], "rotation_deg": r["rotation_deg"],
