@@ -2,7 +2,7 @@
 three seeds; from the committed series alone.
 
     PYTHONPATH=apps/analysis /usr/bin/python3 experiments/2026-11-29-m-design-19k/analyze.py \
-        [--dir experiments/2026-11-29-m-design-19k]
+        [--dir experiments/2026-11-29-m-design-19k] [--plot]
 
 Reads DIR/tests.csv and DIR/series/*.csv.gz (export.py); writes DIR/states.csv (per test: e0, its
 end window, whether e, p, Z_mech and F_a are steady there, its characteristic state) and DIR/m.json
@@ -29,6 +29,7 @@ stationarity rule now in force and seeds):
 Added after seeds 2017 and 2018 were seen, before seed 2019 ran; a sensitivity, never the verdict:
 the peak states' eta* depends on s, so the pooled m is also given with s at the smallest and the
 largest of the dense samples' own slopes (the phase transformations do not use s).
+Added after all 18 were seen, not the verdict: form_check (is ln(eta*/M) straight in psi?).
 """
 import argparse
 import csv
@@ -61,11 +62,73 @@ def load(folder):
     return tests
 
 
+def form_check(tests, M):
+    """Whether ln(eta*/M) is straight in psi, as Li & Dafalias's e^{m psi} says (added after the data were
+    seen; not the verdict): a quadratic fitted to all states (its psi^2 term and its slope at psi = 0 with
+    their OLS standard errors), and straight lines fitted on either side of psi = -0.1."""
+    use = [x["state"] for x in tests if math.isfinite(x["state"]["eta_star"])]
+    x = np.array([st["psi"] for st in use])
+    y = np.log(np.array([st["eta_star"] for st in use]) / M)
+    out = {}
+    a = np.column_stack([x, x ** 2, np.ones_like(x)])
+    coef = np.linalg.lstsq(a, y, rcond=None)[0]
+    r = y - a @ coef
+    cov = (r @ r) / (len(y) - 3) * np.linalg.inv(a.T @ a)
+    out.update(quadratic=float(coef[1]), quadratic_se=float(math.sqrt(cov[1, 1])), slope_at_0=float(coef[0]),
+               slope_at_0_se=float(math.sqrt(cov[0, 0])))
+    for name, k in (("dense", x <= -0.1), ("loose", x > -0.1)):
+        f = dilatancy.fit_m_pt(x[k], np.exp(y[k]) * M, M)
+        out[f"m_{name}"], out[f"n_{name}"] = f["m"], int(k.sum())
+    return out
+
+
+def plot(tests, pooled, sensitivity, M, path):
+    """ln(eta*/M) against psi at each test's characteristic state, by seed and kind, with the pooled line,
+    its 95 % band for m (the intercept at its fitted value), and the lines of the sensitivity to s."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    fig, ax = plt.subplots(figsize=(6.4, 4.6))
+    colours = {}
+    for x in tests:
+        st = x["state"]
+        if not math.isfinite(st["eta_star"]):
+            continue
+        c = colours.setdefault(x["seed"], f"C{len(colours)}")
+        pt = st["kind"] == "phase transformation"
+        ax.plot(st["psi"], math.log(st["eta_star"] / M), "o" if pt else "s", color=c, mfc="none" if pt else c,
+                label=f"seed {x['seed']}" if not pt and f"seed {x['seed']}" not in
+                [h.get_label() for h in ax.lines] else None)
+    xs = np.linspace(-0.2, 0.0, 50)
+    ax.plot(xs, pooled["c"] + pooled["m"] * xs, "k-", label=f"pooled m = {pooled['m']:.2f}")
+    lo, hi = pooled["interval"]
+    if math.isfinite(lo) and math.isfinite(hi):
+        xm = float(np.mean([x["state"]["psi"] for x in tests if math.isfinite(x["state"]["eta_star"])]))
+        ym = pooled["c"] + pooled["m"] * xm
+        ax.fill_between(xs, ym + lo * (xs - xm), ym + hi * (xs - xm), color="k", alpha=0.12,
+                        label=f"95 % for m [{lo:.2f}, {hi:.2f}]")
+    for label, v in sensitivity.items():
+        f = v["fit"]
+        if math.isfinite(f["m"]):
+            ax.plot(xs, f["c"] + f["m"] * xs, "k:", lw=1)
+            ax.annotate(f"s = {v['s']:.2f}: m = {f['m']:.2f}", (xs[3], f["c"] + f["m"] * xs[3] + 0.01), fontsize=7)
+    ax.plot(xs, math.log(1.0) + 4.57 * xs, "r--", lw=1, label="the study's m = 4.57 (through the origin)")
+    ax.set_xlabel("psi at the state (e - e_c)")
+    ax.set_ylabel("ln(eta* / M)")
+    ax.set_title("m design, 19,436 spheres, 0.5 MPa, b = 0 (filled: peak; open: phase transformation)",
+                 fontsize=8)
+    ax.legend(fontsize=7, loc="lower right")
+    fig.tight_layout()
+    fig.savefig(path, dpi=130)
+    plt.close(fig)
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--dir", default=HERE)
     ap.add_argument("--seeds", type=int, nargs="*", help="only these seeds (an interim look; the verdict pools all)")
     ap.add_argument("--out", default=None, help="where states.csv and m.json go (default --dir)")
+    ap.add_argument("--plot", action="store_true", help="also m.png: ln(eta*/M) against psi, the fit and its interval")
     a = ap.parse_args(argv)
     tests = [x for x in load(a.dir) if x["ok"] and (not a.seeds or x["seed"] in a.seeds)]
     if not tests:
@@ -115,12 +178,13 @@ def main(argv=None):
                      "psi_state": x["state"]["psi"], "eta_star": x["state"]["eta_star"]})
 
     pooled = fit(tests)
+    form = form_check(tests, M)
     seeds = {str(seed): fit([x for x in tests if x["seed"] == seed]) for seed in sorted({x["seed"] for x in tests})}
     per_seed = [f["m"] for f in seeds.values() if math.isfinite(f["m"])]
     spread = float(np.std(per_seed, ddof=1)) if len(per_seed) >= 2 else math.nan
     out = {"e_c": e_c, "M": M, "n_steady": len(steady), "caveat": caveat, "initial_slope": s,
            "pooled": pooled, "seeds": seeds, "seed_sd_of_m": spread, "initial_slopes": slopes,
-           "sensitivity_to_s": sensitivity}
+           "sensitivity_to_s": sensitivity, "form_check": form}
     out_dir = a.out or a.dir
     os.makedirs(out_dir, exist_ok=True)
     with open(os.path.join(out_dir, "states.csv"), "w", newline="") as f:
@@ -137,7 +201,13 @@ def main(argv=None):
     for name, f in [("pooled", pooled)] + [(f"seed {k}", v) for k, v in seeds.items()]:
         print(f"{name}: m = {f['m']:.3g}, 95 % [{f['interval'][0]:.3g}, {f['interval'][1]:.3g}] (n {f['n']}, "
               f"psi span {f['psi_span']:.3f}): {f['verdict']} {f['note']}")
+    if a.plot:
+        plot(tests, pooled, sensitivity, M, os.path.join(out_dir, "m.png"))
     print(f"the seeds' m: SD {spread:.3g} against the pooled SE {pooled['se']:.3g}")
+    print(f"form check (after the data, not the verdict): quadratic term {form['quadratic']:.3g} +- "
+          f"{form['quadratic_se']:.2g}, its slope at psi = 0 {form['slope_at_0']:.3g} +- {form['slope_at_0_se']:.2g}; "
+          f"straight-line slope for psi <= -0.1: {form['m_dense']:.3g} (n {form['n_dense']}), "
+          f"psi > -0.1: {form['m_loose']:.3g} (n {form['n_loose']})")
     for label, v in sensitivity.items():
         f = v["fit"]
         print(f"sensitivity, s = {v['s']:.3f} ({label}): m = {f['m']:.3g}, 95 % [{f['interval'][0]:.3g}, "
