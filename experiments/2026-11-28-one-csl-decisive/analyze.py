@@ -82,8 +82,14 @@ def index_status(folder):
 
 
 def one_test(path, status):
-    cols = results.read_columns(path, ["eps_q", "eps_v", "p", "q", "eta", "e", "b", "Z_mech", "fabric", "stress",
-                                       "strain"])
+    """The measures of one test from its results file, or from its series kept in git (export_series.py's
+    .csv.gz)."""
+    names = ["eps_q", "eps_v", "p", "q", "eta", "e", "b", "Z_mech", "fabric", "stress", "strain"]
+    if path.endswith(".csv.gz"):
+        import export_series  # this folder's (on sys.path as the running script's own)
+        cols = export_series.read(path, names)
+    else:
+        cols = results.read_columns(path, names)
     fa, align = fabric_measures(cols["fabric"], cols["stress"])
     series = {k: cols[k] for k in ("p", "q", "eta", "e", "eps_v", "b")}
     series["Z_mech"] = cols["Z_mech"]

@@ -6,7 +6,8 @@ free cell, against the 19,436-sphere free cells.
     PYTHONPATH=apps/analysis /usr/bin/python3 experiments/2026-11-28-one-csl-decisive/large.py LARGE8_OUT \
         experiments/2026-11-28-one-csl-decisive/tests.csv --p0 8000     (writes large-8mpa.csv)
 
-LARGE_OUT is the large run's --out folder (large-s2020.toml); REF_ROOT holds free-s{2017,2018,2019} with the
+LARGE_OUT is the large run's --out folder (large-s2020.toml), or the folder its series were exported to
+(export_series.py: series/large-8mpa); REF_ROOT holds free-s{2017,2018,2019} with the
 19,436-sphere tests as analyze.py reads them (at 0.5 MPa b = 1, the servo-cap re-runs: the merged folder of
 experiments/2026-11-28-servo-cap/rerun.sh, to the same eps_q = 0.6 as the large cell). Writes large.csv (one row per
 large test, analyze.one_test's columns, and the offset lines) and prints the verdicts. At 8 MPa (large-8mpa-s2020.toml)
@@ -87,6 +88,8 @@ def main(argv=None):
     rows = {}
     for name in test_names(a.p0):
         path = os.path.join(a.large, name + ".h5")
+        if not os.path.exists(path):  # the series kept in git (export_series.py)
+            path = os.path.join(a.large, name + ".csv.gz")
         if os.path.exists(path):
             rows[float(name[3:7])] = dict(test=name, **analyze.one_test(path, status.get(name, "running")))
     ref = reference(a.reference, a.p0)
