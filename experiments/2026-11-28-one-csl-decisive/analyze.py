@@ -4,7 +4,8 @@
         RUN_ROOT [--out experiments/2026-11-28-one-csl-decisive]
 
 RUN_ROOT holds the run folders {fixed,free}-s{2017,2018,2019} (configs fixed-s*.toml and free-s*.toml:
-constant p, b = 0, 0.5, 1, p0 = 0.5 and 8 MPa, sheared to eps_q = 0.6 without stopping). Writes
+constant p, b = 0, 0.5, 1, p0 = 0.5 and 8 MPa, sheared to eps_q = 0.6 without stopping), with the results
+files or the series export_series.py kept of them (run.sh's EXPORT: series/). Writes
 tests.csv (one row per test: status, critical state over the last 0.1 of eps_q by the package's
 criterion, window means of e, p, q/p, b, Z_mech, the fabric anisotropy F_a and the fabric-loading
 alignment A), offsets.csv (per cell, p0 and b: the seeds' mean e_c minus that of b = 0, with its
@@ -28,6 +29,11 @@ Criteria, fixed before the data:
 - sensitivity (reported apart, never the verdict): the same offsets over every test that held its path to
   eps_q = 0.6, steady or not (offsets.csv entry held_path; verdicts.json sensitivity_held_path_only). Added after
   the three seeds had run, when the steady criterion left most groups with one seed.
+- The re-run under version 3 of the critical-state rule (fixed 2026-11-29 23:20, before any of its tests
+  ran): the same configs, seeds, criteria and thresholds, run by run.sh (JOBS=1, EXPORT=series) on build
+  9ac3c84 (the larger cell's binary), its series kept in series/ and its tables written to v3/ (`--out
+  experiments/2026-11-28-one-csl-decisive/v3`); "steady" is now the package's version 3 (6 SE where a
+  window holds fewer than 10 effective rows). The first run's tables (version 2) stay as they are.
 - A = F'n : s'n, the contraction of the unit deviatoric fabric (15/2 (phi - I/3), normalized) with
   the unit deviatoric stress: 1 when the fabric is aligned with the loading, as anisotropic critical
   state theory (Li & Dafalias 2012) requires at critical state.
@@ -152,9 +158,9 @@ def main(argv=None):
                 continue
             status = index_status(folder)
             for name in sorted(os.listdir(folder)):
-                if not (name.startswith("p-b") and name.endswith("kPa.h5")):
+                if not (name.startswith("p-b") and (name.endswith("kPa.h5") or name.endswith("kPa.csv.gz"))):
                     continue
-                test = name[:-3]
+                test = name[:-3] if name.endswith(".h5") else name[:-7]
                 st = status.get(test, "running")
                 try:
                     r = one_test(os.path.join(folder, name), st)
