@@ -123,6 +123,37 @@ def plot(tests, pooled, sensitivity, M, path):
     plt.close(fig)
 
 
+def plot_curves(tests, e_c, M, path):
+    """q/p, e and eps_v against eps_q for every test, coloured by its target e0 (one line style per seed),
+    with e_c and M (the steady tests' end windows) as dashed lines: the same critical state from both sides."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    fig, axes = plt.subplots(1, 3, figsize=(12.0, 3.9))
+    targets = sorted({float(x["row"]["target_e0"]) for x in tests})
+    cmap = plt.get_cmap("viridis")
+    styles = {}
+    for x in sorted(tests, key=lambda x: (x["seed"], x["e0"])):
+        t = x["t"]
+        k = targets.index(float(x["row"]["target_e0"]))
+        ls = styles.setdefault(x["seed"], ["-", "--", ":"][len(styles) % 3])
+        colour = cmap(k / max(1, len(targets) - 1))
+        lab = f"e0 target {targets[k]:.2f}" if x["seed"] == min(y["seed"] for y in tests) else None
+        for ax, y in zip(axes, (t["eta"], t["e"], t["eps_v"])):
+            ax.plot(t["eps_q"], y, ls, color=colour, lw=0.8, label=lab)
+    axes[0].axhline(M, color="k", ls="--", lw=0.8)
+    axes[1].axhline(e_c, color="k", ls="--", lw=0.8)
+    for ax, name in zip(axes, ("q/p", "e", "eps_v (compression +)")):
+        ax.set_xlabel("eps_q")
+        ax.set_ylabel(name)
+    axes[0].legend(fontsize=7)
+    axes[1].set_title(f"19,436 spheres, 0.5 MPa, b = 0; seeds {', '.join(str(s) for s in styles)} "
+                      f"({', '.join(styles.values())}); dashed: e_c {e_c:.4f}, M {M:.3f}", fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--dir", default=HERE)
@@ -203,6 +234,7 @@ def main(argv=None):
               f"psi span {f['psi_span']:.3f}): {f['verdict']} {f['note']}")
     if a.plot:
         plot(tests, pooled, sensitivity, M, os.path.join(out_dir, "m.png"))
+        plot_curves(tests, e_c, M, os.path.join(out_dir, "curves.png"))
     print(f"the seeds' m: SD {spread:.3g} against the pooled SE {pooled['se']:.3g}")
     print(f"form check (after the data, not the verdict): quadratic term {form['quadratic']:.3g} +- "
           f"{form['quadratic_se']:.2g}, its slope at psi = 0 {form['slope_at_0']:.3g} +- {form['slope_at_0_se']:.2g}; "
