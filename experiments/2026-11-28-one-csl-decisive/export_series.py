@@ -10,13 +10,9 @@ with no time stamp, so the same series gives the same bytes) and copies index.cs
 gives the columns back as results.read_columns does.
 """
 import argparse
-import gzip
-import io
 import os
 import shutil
 import sys
-
-import numpy as np
 
 from sandcell_analysis import results
 
@@ -24,35 +20,15 @@ SCALARS = ["step", "eps_q", "eps_v", "p", "q", "eta", "e", "b", "Z_mech"]
 TENSORS = {"fabric": 6, "stress": 6, "strain": 3}  # columns of each 2-D dataset
 
 
-def header():
-    return SCALARS + [f"{t}_{c}" for t, n in TENSORS.items() for c in range(n)]
-
-
 def write(h5, out):
     """The series of results file H5 into OUT (.csv.gz); returns the number of rows."""
     cols = results.read_columns(h5, SCALARS + list(TENSORS))
-    n = len(cols["step"])
-    table = np.column_stack([cols[k] for k in SCALARS] + [np.asarray(cols[t]).reshape(n, -1) for t in TENSORS])
-    tmp = out + ".tmp"
-    with open(tmp, "wb") as raw, gzip.GzipFile(filename="", mode="wb", fileobj=raw, mtime=0) as gz, \
-            io.TextIOWrapper(gz, newline="") as fh:
-        fh.write(",".join(header()) + "\n")
-        for row in table:
-            fh.write(",".join(f"{v:.9g}" for v in row) + "\n")
-    os.replace(tmp, out)
-    return n
+    return results.write_series_csv(out, {k: cols[k] for k in SCALARS + list(TENSORS)})
 
 
 def read(path, names=None):
     """A series written by write() as {name: array} (the 2-D datasets as [n, k]), only NAMES if given."""
-    with gzip.open(path, "rt", newline="") as fh:
-        head = fh.readline().strip().split(",")
-        data = np.loadtxt(fh, delimiter=",", ndmin=2)
-    flat = {name: data[:, k] for k, name in enumerate(head)}
-    out = {k: flat[k] for k in SCALARS if k in flat}
-    for t, n in TENSORS.items():
-        if f"{t}_0" in flat:
-            out[t] = np.column_stack([flat[f"{t}_{c}"] for c in range(n)])
+    out = results.read_series_csv(path, tensors=TENSORS)
     if names is not None:
         missing = [k for k in names if k not in out]
         if missing:

@@ -14,8 +14,6 @@ exported again).
 """
 import argparse
 import csv
-import gzip
-import io
 import os
 import re
 import shutil
@@ -33,36 +31,14 @@ FIELDS = ["seed", "target_e0", "e0", "status", "ok", "prepare_friction", "eps_q_
           "steps", "rows", "path_error", "rotation_deg", "reason", "state_digest", "build"]
 
 
-def columns():
-    """The series CSV's header: the scalars, then each tensor's six components."""
-    return SCALARS + [f"{t}_{c}" for t in TENSORS for c in range(6)]
-
-
 def write_series(h5, out):
     cols = results.read_columns(h5, SCALARS + TENSORS)
-    n = len(cols["step"])
-    table = np.column_stack([cols[k] for k in SCALARS] + [np.asarray(cols[t]).reshape(n, -1) for t in TENSORS])
-    tmp = out + ".tmp"
-    # mtime 0 and no file name in the gzip header: the same series gives the same bytes (no churn in git).
-    with open(tmp, "wb") as raw, gzip.GzipFile(filename="", mode="wb", fileobj=raw, mtime=0) as gz, \
-            io.TextIOWrapper(gz, newline="") as fh:
-        fh.write(",".join(columns()) + "\n")
-        for row in table:
-            fh.write(",".join(f"{v:.9g}" for v in row) + "\n")
-    os.replace(tmp, out)  # a reader never sees half a file
-    return n
+    return results.write_series_csv(out, {k: cols[k] for k in SCALARS + TENSORS})
 
 
 def read_series(path):
     """A series CSV (write_series) as float arrays; fabric and stress as [n, 6]."""
-    with gzip.open(path, "rt", newline="") as fh:
-        head = fh.readline().strip().split(",")
-        data = np.loadtxt(fh, delimiter=",", ndmin=2)
-    cols = {name: data[:, k] for k, name in enumerate(head)}
-    out = {k: cols[k] for k in SCALARS}
-    for t in TENSORS:
-        out[t] = np.column_stack([cols[f"{t}_{c}"] for c in range(6)])
-    return out
+    return results.read_series_csv(path, tensors=TENSORS)
 
 
 def read_tests(path):

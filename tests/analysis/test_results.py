@@ -87,3 +87,34 @@ def test_index_and_samples_rows(tmp_path):
 def test_b_key_rounds_the_nominal_b():
     assert results.b_key({"b_nominal": 0.2500001}) == 0.25
     assert math.isnan(results.b_key({"b_nominal": math.nan}))
+
+
+def test_series_kept_as_csv_come_back_to_their_digits_and_the_same_bytes(tmp_path, monkeypatch):
+    # write_series_csv keeps a series in git: 9 significant digits, so every value comes back within
+    # half a unit of the 9th digit (relative 5e-9); 2-D columns as name_0.. and back as [n, k]; the
+    # gzip header holds no time stamp, so writing the same series twice gives the same bytes.
+    rng = np.random.default_rng(7)
+    n = 257
+    cols = {"step": np.arange(n) * 50.0, "e": 0.7 + 0.01 * rng.standard_normal(n),
+            "stress": rng.standard_normal((n, 6)) * 1e6, "strain": rng.standard_normal((n, 3)) * 1e-3}
+    a, b = str(tmp_path / "a.csv.gz"), str(tmp_path / "b.csv.gz")
+    assert results.write_series_csv(a, cols) == n
+    # The second write at another clock time (gzip stamps time.time() unless told not to).
+    import gzip
+    import types
+    monkeypatch.setattr(gzip, "time", types.SimpleNamespace(time=lambda: 1.0e9))
+    results.write_series_csv(b, cols)
+    with open(a, "rb") as fa, open(b, "rb") as fb:
+        assert fa.read() == fb.read()
+    back = results.read_series_csv(a, tensors=("stress", "strain"))
+    assert set(back) == {"step", "e", "stress", "strain"}
+    assert back["stress"].shape == (n, 6) and back["strain"].shape == (n, 3)
+    for k, v in cols.items():
+        assert np.allclose(back[k], v, rtol=5e-9, atol=0), k
+    assert np.array_equal(back["step"], cols["step"])  # integers below 1e9 are exact
+    # Without tensors, the flat columns by name; a wrong digit count would fail the tolerance above.
+    flat = results.read_series_csv(a)
+    assert np.array_equal(flat["stress_5"], back["stress"][:, 5])
+    results.write_series_csv(b, cols, digits=4)
+    coarse = results.read_series_csv(b, tensors=("stress", "strain"))
+    assert not np.allclose(coarse["e"], cols["e"], rtol=5e-9, atol=0)

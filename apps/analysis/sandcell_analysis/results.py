@@ -68,6 +68,52 @@ def read_csv_rows(path):
         return list(csv.DictReader(fh))
 
 
+def write_series_csv(path, columns, digits=9):
+    """Series kept in git instead of their results file: COLUMNS (name -> 1-D array, or 2-D [n, k]
+    written as name_0 .. name_{k-1}, in the given order) into PATH as a gzip-compressed CSV, `digits`
+    significant digits, no time stamp or file name in the gzip header (the same series gives the same
+    bytes, so re-exporting churns nothing), through a temporary file (a reader never sees half of it).
+    Returns the number of rows."""
+    import gzip
+    import io
+    head, parts = [], []
+    for name, v in columns.items():
+        a = np.asarray(v, float)
+        if a.ndim == 1:
+            head.append(name)
+            parts.append(a[:, None])
+        else:
+            head += [f"{name}_{c}" for c in range(a.shape[1])]
+            parts.append(a.reshape(a.shape[0], -1))
+    n = min(p.shape[0] for p in parts) if parts else 0
+    table = np.hstack([p[:n] for p in parts]) if parts else np.zeros((0, 0))
+    tmp = path + ".tmp"
+    with open(tmp, "wb") as raw, gzip.GzipFile(filename="", mode="wb", fileobj=raw, mtime=0) as gz, \
+            io.TextIOWrapper(gz, newline="") as fh:
+        fh.write(",".join(head) + "\n")
+        for row in table:
+            fh.write(",".join(f"{v:.{digits}g}" for v in row) + "\n")
+    os.replace(tmp, path)
+    return n
+
+
+def read_series_csv(path, tensors=()):
+    """A series written by write_series_csv as {name: array}; the names in TENSORS come back as 2-D
+    arrays from their name_0, name_1, ... columns."""
+    import gzip
+    with gzip.open(path, "rt", newline="") as fh:
+        head = fh.readline().strip().split(",")
+        data = np.loadtxt(fh, delimiter=",", ndmin=2)
+    flat = {name: data[:, k] for k, name in enumerate(head)}
+    out = {}
+    for t in tensors:
+        cols = [flat.pop(f"{t}_{c}") for c in range(len(head)) if f"{t}_{c}" in flat]
+        if cols:
+            out[t] = np.column_stack(cols)
+    out.update(flat)
+    return out
+
+
 def read_index(folder):
     """The rows of a run folder's index.csv (one per test: test, status, file, steps, ...)."""
     return read_csv_rows(os.path.join(folder, "index.csv"))
