@@ -47,7 +47,7 @@ def test_names(p0_kpa):
 
 def reference(root, p0_kpa=500):
     """The 19,436-sphere free-cell tests at p0 that held their path to eps_q = 0.6: {b: [e_c, ...]}, from the
-    seeds' results files under ROOT (free-s<seed>/), or from a CSV of their rows (this folder's tests.csv:
+    seeds' results files or exported series under ROOT (free-s<seed>/), or from a CSV of their rows (tests.csv:
     cell, test, status, eps_q_end, e), for when the files are gone."""
     out = {0.0: [], 0.5: [], 1.0: []}
     if os.path.isfile(root):
@@ -62,6 +62,8 @@ def reference(root, p0_kpa=500):
         status = analyze.index_status(folder)
         for name in test_names(p0_kpa):
             path = os.path.join(folder, name + ".h5")
+            if not os.path.exists(path):  # the series kept in git (export_series.py)
+                path = os.path.join(folder, name + ".csv.gz")
             if not os.path.exists(path):
                 continue
             r = analyze.one_test(path, status.get(name, "running"))
