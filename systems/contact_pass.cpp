@@ -565,12 +565,27 @@ struct ContactKernel {
     to_pair3(d.torque_j, tjx, tjy, tjz);
     to_pair3(d.hist_t, hx, hy, hz);
     if constexpr (Roll != RollingModel::none) to_pair3(d.hist_r, gx, gy, gz);
-    for (int l = 0; l < 4; ++l) {
-      const std::size_t q = k[l];
-      const std::uint8_t now = static_cast<std::uint8_t>((t_cap[l] & 1) | (r_cap[l] & 2));
-      if (now != d.regime[q]) [[unlikely]] {
-        d.regime[q] = now;
+    // The four regimes as bytes (lane l: bit 0 at the Coulomb cap, bit 1 at the rolling cap) from the
+    // caps' sign masks, compared with last step's four at once where the pairs are consecutive.
+    static constexpr std::uint32_t k_spread[16] = {
+        0x00000000, 0x00000001, 0x00000100, 0x00000101, 0x00010000, 0x00010001, 0x00010100, 0x00010101,
+        0x01000000, 0x01000001, 0x01000100, 0x01000101, 0x01010000, 0x01010001, 0x01010100, 0x01010101};
+    const std::uint32_t now4 = k_spread[_mm256_movemask_pd((__m256d)t_cap)] |
+                               (k_spread[_mm256_movemask_pd((__m256d)r_cap)] << 1);
+    if constexpr (Contig) {
+      std::uint32_t old4;
+      std::memcpy(&old4, d.regime + k[0], sizeof old4);
+      if (old4 != now4) [[unlikely]] {
+        std::memcpy(d.regime + k[0], &now4, sizeof now4);
         changed = 1;
+      }
+    } else {
+      for (int l = 0; l < 4; ++l) {
+        const std::uint8_t now = static_cast<std::uint8_t>(now4 >> (8 * l));
+        if (now != d.regime[k[l]]) [[unlikely]] {
+          d.regime[k[l]] = now;
+          changed = 1;
+        }
       }
     }
   }
