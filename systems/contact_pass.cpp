@@ -598,32 +598,37 @@ struct ContactKernel {
   void phase3(const Block& blk, std::size_t k0, std::size_t nb, At at, unsigned& changed) const {
 #if defined(SANDCELL_LANES)
     if constexpr (k_lanes) {
-      std::uint8_t four[4];
-      unsigned held = 0;
+      // The touching pairs in visiting order, gathered without branches (an apart pair's slot is
+      // overwritten by the next); the apart pairs go to the scalar visit, which writes only those
+      // that opened this step. Each pair's result depends on that pair alone, so visiting the apart
+      // ones first changes no result.
+      std::uint8_t touching[k_block];
+      unsigned n_touch = 0;
       for (std::size_t u = 0; u < nb; ++u) {
         const std::uint8_t t = at(u);
-        if (!(blk.overlap[t] > 0.0)) {
+        touching[n_touch] = t;
+        const bool touch = blk.overlap[t] > 0.0;
+        n_touch += touch;
+        if (!touch) [[unlikely]]
           visit<G>(blk, k0, t, changed);
-          continue;
-        }
-        four[held++] = t;
-        if (held == 4) {
-          const bool contig = four[1] == four[0] + 1 && four[2] == four[0] + 2 && four[3] == four[0] + 3;
-          if (d.n_mat == 1) {
-            if (contig)
-              visit4<G, true, true>(blk, k0, four, changed);
-            else
-              visit4<G, false, true>(blk, k0, four, changed);
-          } else {
-            if (contig)
-              visit4<G, true, false>(blk, k0, four, changed);
-            else
-              visit4<G, false, false>(blk, k0, four, changed);
-          }
-          held = 0;
+      }
+      unsigned u = 0;
+      for (; u + 4 <= n_touch; u += 4) {
+        const std::uint8_t* four = touching + u;
+        const bool contig = four[1] == four[0] + 1 && four[2] == four[0] + 2 && four[3] == four[0] + 3;
+        if (d.n_mat == 1) {
+          if (contig)
+            visit4<G, true, true>(blk, k0, four, changed);
+          else
+            visit4<G, false, true>(blk, k0, four, changed);
+        } else {
+          if (contig)
+            visit4<G, true, false>(blk, k0, four, changed);
+          else
+            visit4<G, false, false>(blk, k0, four, changed);
         }
       }
-      for (unsigned u = 0; u < held; ++u) visit<G>(blk, k0, four[u], changed);
+      for (; u < n_touch; ++u) visit<G>(blk, k0, touching[u], changed);
       return;
     }
 #endif
