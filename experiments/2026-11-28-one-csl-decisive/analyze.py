@@ -150,6 +150,7 @@ def main(argv=None):
     ap.add_argument("root")
     ap.add_argument("--out", default=os.path.dirname(os.path.abspath(__file__)))
     a = ap.parse_args(argv)
+    os.makedirs(a.out, exist_ok=True)  # e.g. v3/
     rows = []
     for cell in CELLS:
         for seed in SEEDS:

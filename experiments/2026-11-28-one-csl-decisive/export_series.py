@@ -17,13 +17,13 @@ import sys
 from sandcell_analysis import results
 
 SCALARS = ["step", "eps_q", "eps_v", "p", "q", "eta", "e", "b", "Z_mech"]
-TENSORS = {"fabric": 6, "stress": 6, "strain": 3}  # columns of each 2-D dataset
+TENSORS = ["fabric", "stress", "strain"]  # 2-D datasets: [n, 6], [n, 6], [n, 3]
 
 
 def write(h5, out):
     """The series of results file H5 into OUT (.csv.gz); returns the number of rows."""
-    cols = results.read_columns(h5, SCALARS + list(TENSORS))
-    return results.write_series_csv(out, {k: cols[k] for k in SCALARS + list(TENSORS)})
+    cols = results.read_columns(h5, SCALARS + TENSORS)
+    return results.write_series_csv(out, {k: cols[k] for k in SCALARS + TENSORS})
 
 
 def read(path, names=None):

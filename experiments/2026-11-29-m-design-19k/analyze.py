@@ -94,11 +94,11 @@ def plot(tests, pooled, sensitivity, M, path):
         st = x["state"]
         if not math.isfinite(st["eta_star"]):
             continue
+        first = x["seed"] not in colours  # the seed's first point carries its label
         c = colours.setdefault(x["seed"], f"C{len(colours)}")
         pt = st["kind"] == "phase transformation"
         ax.plot(st["psi"], math.log(st["eta_star"] / M), "o" if pt else "s", color=c, mfc="none" if pt else c,
-                label=f"seed {x['seed']}" if not pt and f"seed {x['seed']}" not in
-                [h.get_label() for h in ax.lines] else None)
+                label=f"seed {x['seed']}" if first else None)
     xs = np.linspace(-0.2, 0.0, 50)
     ax.plot(xs, pooled["c"] + pooled["m"] * xs, "k-", label=f"pooled m = {pooled['m']:.2f}")
     lo, hi = pooled["interval"]
@@ -112,7 +112,7 @@ def plot(tests, pooled, sensitivity, M, path):
         if math.isfinite(f["m"]):
             ax.plot(xs, f["c"] + f["m"] * xs, "k:", lw=1)
             ax.annotate(f"s = {v['s']:.2f}: m = {f['m']:.2f}", (xs[3], f["c"] + f["m"] * xs[3] + 0.01), fontsize=7)
-    ax.plot(xs, math.log(1.0) + 4.57 * xs, "r--", lw=1, label="the study's m = 4.57 (through the origin)")
+    ax.plot(xs, 4.57 * xs, "r--", lw=1, label="the study's m = 4.57 (through the origin)")
     ax.set_xlabel("psi at the state (e - e_c)")
     ax.set_ylabel("ln(eta* / M)")
     ax.set_title("m design, 19,436 spheres, 0.5 MPa, b = 0 (filled: peak; open: phase transformation)",
@@ -133,12 +133,13 @@ def plot_curves(tests, e_c, M, path):
     targets = sorted({float(x["row"]["target_e0"]) for x in tests})
     cmap = plt.get_cmap("viridis")
     styles = {}
+    labelled = min(x["seed"] for x in tests)  # one seed's lines carry the targets' labels
     for x in sorted(tests, key=lambda x: (x["seed"], x["e0"])):
         t = x["t"]
         k = targets.index(float(x["row"]["target_e0"]))
         ls = styles.setdefault(x["seed"], ["-", "--", ":"][len(styles) % 3])
         colour = cmap(k / max(1, len(targets) - 1))
-        lab = f"e0 target {targets[k]:.2f}" if x["seed"] == min(y["seed"] for y in tests) else None
+        lab = f"e0 target {targets[k]:.2f}" if x["seed"] == labelled else None
         for ax, y in zip(axes, (t["eta"], t["e"], t["eps_v"])):
             ax.plot(t["eps_q"], y, ls, color=colour, lw=0.8, label=lab)
     axes[0].axhline(M, color="k", ls="--", lw=0.8)
@@ -159,7 +160,9 @@ def main(argv=None):
     ap.add_argument("--dir", default=HERE)
     ap.add_argument("--seeds", type=int, nargs="*", help="only these seeds (an interim look; the verdict pools all)")
     ap.add_argument("--out", default=None, help="where states.csv and m.json go (default --dir)")
-    ap.add_argument("--plot", action="store_true", help="also m.png: ln(eta*/M) against psi, the fit and its interval")
+    ap.add_argument("--plot", action="store_true",
+                    help="also m.png (ln(eta*/M) against psi, the fit and its interval) and curves.png "
+                         "(q/p, e, eps_v against eps_q)")
     a = ap.parse_args(argv)
     tests = [x for x in load(a.dir) if x["ok"] and (not a.seeds or x["seed"] in a.seeds)]
     if not tests:

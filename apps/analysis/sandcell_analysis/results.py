@@ -107,7 +107,9 @@ def read_series_csv(path, tensors=()):
     flat = {name: data[:, k] for k, name in enumerate(head)}
     out = {}
     for t in tensors:
-        cols = [flat.pop(f"{t}_{c}") for c in range(len(head)) if f"{t}_{c}" in flat]
+        cols = []
+        while f"{t}_{len(cols)}" in flat:
+            cols.append(flat.pop(f"{t}_{len(cols)}"))
         if cols:
             out[t] = np.column_stack(cols)
     out.update(flat)
