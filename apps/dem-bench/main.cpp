@@ -2,7 +2,7 @@
 // ran (apps/dem-bench/scenes/: the scenes and the settings, docs/performance.md: the figures).
 //
 //   dem-bench [--scene FILE] [--tile K] [--steps N] [--threads T] [--deform RATE] [--shear RATE] [--rolling MODEL]
-//             [--tangential MODEL] [--compat] [--sort STEPS] [--serial] [--json]
+//             [--tangential MODEL] [--compat] [--sort STEPS] [--skin M] [--serial] [--json]
 // --sort STEPS: spatial sort interval (default 1000; 0 = never).
 //
 //   dem-bench --costs [--scene FILE] [--steps N] [--threads T] [--rounds R]
@@ -332,7 +332,7 @@ struct Options {
   std::string scene = std::string(SANDCELL_BENCH_SCENE_DIR) + "/dense-20k.txt";
   double steps = 2000, threads = 0, rounds = 3, sort_interval = 1000;  // threads 0: all hardware threads
   double tile = 1;  // --tile K: the scene repeated K x K x K times
-  double deform = 0.0, vchar = 0.0, shear = 0.0;
+  double deform = 0.0, vchar = 0.0, shear = 0.0, skin = 0.3e-3;
   bool json = false, serial = false, costs = false, scaling = false, probe = false, compat = false;
   bool servo = false;  // --servo: the stress servo and its homogenizer every step (every axis held at rate 0)
   std::string visit_order = "adaptive";  // --visit-order: the force gather's (Executor::visit_order)
@@ -367,7 +367,7 @@ std::optional<int> parse_command_line(int argc, char** argv, Options& o, Model& 
   app.footer(
       "usage: dem-bench [--scene FILE] [--tile K] [--steps N] [--threads T] [--deform RATE] [--rolling none|epsd2|epsd|cdt]\n"
       "                 [--tangential history|incremental] [--normal hertz|hooke [--vchar V]] [--compat]\n"
-      "                 [--sort STEPS] [--serial] [--partition adaptive|owner|dynamic|fixed]\n"
+      "                 [--sort STEPS] [--skin M] [--serial] [--partition adaptive|owner|dynamic|fixed]\n"
       "                 [--visit-order adaptive|sorted|array] [--json]\n"
       "       dem-bench --costs [--scene FILE] [--steps N] [--threads T] [--rounds R]\n"
       "       dem-bench --probe [--threads T]   (the machine alone: register-only scaling, ping-pong, memory)\n"
@@ -386,6 +386,9 @@ std::optional<int> parse_command_line(int argc, char** argv, Options& o, Model& 
   app.add_option("--deform", o.deform, "scene B: z shortened at this engineering strain rate, 1/s")
       ->type_name("RATE")
       ->check(number_in(0, 1e6));
+  app.add_option("--skin", o.skin, "the neighbour list's Verlet skin, m (default 3e-4, as the established codes' runs)")
+      ->type_name("M")
+      ->check(number_in(1e-6, 1e-2));
   app.add_flag("--compat", o.compat, "leave the affine term out of the contact velocities, as LIGGGHTS does");
   app.add_option("--sort", o.sort_interval, "spatial sort interval in steps (default 1000; 0: never)")
       ->type_name("STEPS")
@@ -507,7 +510,7 @@ static int bench_main(int argc, char** argv) {
   // The benchmark material and settings (identical in every code).
   model.dt = 5.324636531947874e-07;  // s, 0.2 x Rayleigh time of the smallest (d = 5 mm) sphere
   model.materials.push_back(Material{2650.0, 70e9, 0.3, 0.5, 0.5, 0.1});
-  model.contact.skin = 0.3e-3;  // m
+  model.contact.skin = o.skin;  // m
   model.contact.sort_interval = static_cast<int>(o.sort_interval);
   if (o.servo) {  // as --costs' "servo + homogenizer" variant
     if (o.deform > 0 || o.shear != 0) usage_error("--servo: not with --deform or --shear (the servo holds the cell)");

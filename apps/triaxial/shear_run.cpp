@@ -10,6 +10,7 @@
 #include "engine/hdf5.hpp"
 #include "engine/version.hpp"
 #include "engine/results.hpp"
+#include "systems/broadphase.hpp"
 #include "systems/catalogue.hpp"
 #include "systems/homogenizer.hpp"
 
@@ -504,7 +505,9 @@ void ShearRun::finish() {
             ", p = " + num(m_.inv.p / 1e6, "%.4f") + " MPa, b = " + num(m_.inv.b, "%.3f") +
             ", e = " + num(m_.void_ratio, "%.4f") + ", wall " + num(summary_.wall, "%.1f") + " s; " + watch_.worst() +
             "; path error " + num(100.0 * path_watch_.worst_path(), "%.2f") + " %, b error " +
-            num(path_watch_.worst_b(), "%.3f") + ", rotation " + num(path_watch_.worst_rotation(), "%.1f") + " deg");
+            num(path_watch_.worst_b(), "%.3f") + ", rotation " + num(path_watch_.worst_rotation(), "%.1f") + " deg" +
+            "; neighbour list built " + std::to_string(list_builds(world_->scratch())) + " times in this process's " +
+            std::to_string(st.clock.step - step0_) + " steps");
 }
 
 void ShearRun::plot() const {
