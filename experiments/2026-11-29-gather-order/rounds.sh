@@ -5,7 +5,7 @@
 #   bash rounds.sh OUT ROUNDS NAME=COMMAND NAME=COMMAND ...
 # COMMAND: a dem-bench binary and any options of its own, split at spaces (no spaces in paths).
 # SCENES (environment, default "L S") picks the scenes: SCENES=S runs dense-20k alone (binaries
-# older than --tile; experiments/2026-11-29-plain-20k).
+# older than --tile; experiments/2026-11-29-plain-20k). THREADS (default "1 2") picks the thread counts.
 set -euo pipefail
 out=$1 rounds=$2
 shift 2
@@ -16,7 +16,7 @@ n=${#names[@]}
 for r in $(seq 1 "$rounds"); do
   for i in $(seq 0 $((n - 1))); do
     k=$(((i + r) % n))
-    for t in 1 2; do
+    for t in ${THREADS:-1 2}; do
       read -ra cmd <<< "${bins[$k]}"
       for scene in ${SCENES:-L S}; do
         case $scene in
