@@ -506,7 +506,8 @@ void ShearRun::finish() {
             ", e = " + num(m_.void_ratio, "%.4f") + ", wall " + num(summary_.wall, "%.1f") + " s; " + watch_.worst() +
             "; path error " + num(100.0 * path_watch_.worst_path(), "%.2f") + " %, b error " +
             num(path_watch_.worst_b(), "%.3f") + ", rotation " + num(path_watch_.worst_rotation(), "%.1f") + " deg" +
-            "; neighbour list built " + std::to_string(list_builds(world_->scratch())) + " times in this process's " +
+            "; neighbour list built " + std::to_string(list_builds(world_->scratch())) +
+            " times (the first as this process began) in its " +
             std::to_string(st.clock.step - step0_) + " steps");
 }
 

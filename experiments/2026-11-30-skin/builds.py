@@ -1,5 +1,6 @@
 """Steps and neighbour-list builds of each test from run.sh's logs (the triaxial done line's "neighbour list built K
-times in this process's S steps"), with the list's cost model: Ir a step = P(skin) + B(skin) x builds / steps, P and
+times (the first as this process began) in its S steps"; the runs here wrote "in this process's S steps", the same
+count), with the list's cost model: Ir a step = P(skin) + B(skin) x builds / steps, P and
 B the callgrind counts of dense-20k (callgrind.csv), interpolated linearly in the skin.
 
     /usr/bin/python3 experiments/2026-11-30-skin/builds.py OUT [--variant max] > builds.csv
@@ -14,8 +15,8 @@ import sys
 import numpy as np
 
 HERE = os.path.dirname(os.path.abspath(__file__))
-LINE = re.compile(r"^(p-b[0-9.]+-p0_[0-9]+kPa): done at step (\d+).*neighbour list built (\d+) times in this "
-                  r"process's (\d+) steps")
+LINE = re.compile(r"^(p-b[0-9.]+-p0_[0-9]+kPa): done at step (\d+).*neighbour list built (\d+) times.*? in "
+                  r"(?:this process's|its) (\d+) steps")
 
 
 def cost_model():
