@@ -118,3 +118,6 @@ def test_series_kept_as_csv_come_back_to_their_digits_and_the_same_bytes(tmp_pat
     results.write_series_csv(b, cols, digits=4)
     coarse = results.read_series_csv(b, tensors=("stress", "strain"))
     assert not np.allclose(coarse["e"], cols["e"], rtol=5e-9, atol=0)
+    # Columns of unequal length are refused, naming them, rather than cut to the shortest.
+    with pytest.raises(ValueError, match="differ in length"):
+        results.write_series_csv(b, {"step": np.arange(3.0), "e": np.arange(2.0)})

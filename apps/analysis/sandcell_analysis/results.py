@@ -85,8 +85,11 @@ def write_series_csv(path, columns, digits=9):
         else:
             head += [f"{name}_{c}" for c in range(a.shape[1])]
             parts.append(a.reshape(a.shape[0], -1))
-    n = min(p.shape[0] for p in parts) if parts else 0
-    table = np.hstack([p[:n] for p in parts]) if parts else np.zeros((0, 0))
+    lengths = {name: len(np.asarray(v)) for name, v in columns.items()}
+    if len(set(lengths.values())) > 1:
+        raise ValueError(f"{path}: the columns differ in length ({lengths}); a series needs one row count")
+    n = parts[0].shape[0] if parts else 0
+    table = np.hstack(parts) if parts else np.zeros((0, 0))
     tmp = path + ".tmp"
     with open(tmp, "wb") as raw, gzip.GzipFile(filename="", mode="wb", fileobj=raw, mtime=0) as gz, \
             io.TextIOWrapper(gz, newline="") as fh:
