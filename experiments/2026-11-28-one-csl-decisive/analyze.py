@@ -205,6 +205,10 @@ def main(argv=None):
             w.writerow({k: (f"{v:.6g}" if isinstance(v, float) else v) for k, v in r.items()})
     with open(os.path.join(a.out, "verdicts.json"), "w") as f:
         json.dump(dict(verdicts, sensitivity_held_path_only=sensitivity), f, indent=1, sort_keys=True)
+    for b in (0.0, 0.5, 1.0):  # how many tests the entry rule admits, by b (the "steady" lines' n)
+        at_b = [r for r in rows if r["b"] == b]
+        steady = sum(1 for r in at_b if entries[0][1](r))
+        print(f"b {b:g}: {steady} of {len(at_b)} tests held their path and are steady")
     for r in offsets:
         print(f"{r['entry']:9s} {r['cell']:5s} p0 {r['p0_MPa']:g} MPa b {r['b']:g}: e_c {r['e_c_b']:.4f} vs "
               f"{r['e_c_0']:.4f} (n {r['n_b']}/{r['n_0']}): offset {r['offset']:+.4f} +- {r['se']:.4f}: {r['verdict']}")
