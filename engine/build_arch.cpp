@@ -46,7 +46,7 @@ unsigned required_isa() {
 #if defined(__MOVBE__)
   bits |= 1u << 12;
 #endif
-#if defined(__AVX512F__)
+#if defined(__AVX512F__) || defined(__AVX512VL__)  // AVX-512 builds undefine __AVX512F__ for Eigen (CMakeLists.txt)
   bits |= 1u << 13;
 #endif
 #if defined(__AVX512VL__)
