@@ -13,7 +13,7 @@
 // force_gather in a fixed order. Keeps, as its own scratch (ContactScratch), each pair's regime
 // of the last step (caps, or open) and the order in which it visits the pairs of a block: the
 // order is a branch hint that changes no result; an open pair marked open is not written again,
-// so the regimes are started again with every new pair list (contact_pass.cpp).
+// so the regimes are started again with every new pair list (contact_kernel.hpp).
 // The relative velocity at the contact includes the affine part D r unless liggghts_compat.
 // Pairs in the list that do not touch get zero force and zero history (history resets when a
 // contact opens). The pass is instantiated per (laws, affine term), so the hot loop has no
@@ -52,7 +52,7 @@ struct ContactPass {
 };
 
 /// Contact pass private buffers: last step's regime of each pair and the order in which the pass
-/// visits the pairs of each block of 64 (contact_pass.cpp says why). Every pair is visited once
+/// visits the pairs of each block of 64 (contact_kernel.hpp says why). Every pair is visited once
 /// whatever the order and writes only its own slots. One regime is more than a hint: an open pair
 /// marked apart is not written again, its outputs being zero since it opened; so the regimes hold
 /// for one list only (a new list, PairConstants::generation, starts them again) and a World made

@@ -1,6 +1,6 @@
 // A pair's contact forces do not depend on the pairs it is evaluated with. The contact pass
 // evaluates touching pairs four at a time in the lanes of AVX2 registers where the laws allow
-// (systems/contact_pass.cpp, visit4) and one at a time otherwise (fewer than four touching pairs
+// (systems/contact_kernel.hpp, visit4) and one at a time otherwise (fewer than four touching pairs
 // left in a block, other laws, a build without AVX2). Each lane repeats the per-pair arithmetic in
 // the same order, so the two must agree bit for bit. Here every pair of a scene of separate
 // pairs (two materials, sticking and sliding, at and below the rolling cap, and pairs in the list
