@@ -15,21 +15,17 @@
 #include "systems/pair_list.hpp"
 
 #include "engine/assert.hpp"
-#include "engine/name_table.hpp"
 
 #include <algorithm>
 #include <array>
 #include <cmath>
 #include <cstring>
 #include <limits>
-#include <stdexcept>
-#include <string>
 #include <type_traits>
 
 #if defined(__AVX2__)
 #include <immintrin.h>
 #endif
-
 
 namespace sandcell {
 

@@ -2,26 +2,17 @@
 
 #include "systems/contact_parts.hpp"
 
-#include "systems/laws/mindlin.hpp"
-#include "systems/laws/normal_laws.hpp"
-#include "systems/laws/rolling.hpp"
 #include "systems/laws/select.hpp"
-#include "systems/halo.hpp"
-#include "systems/homogenizer.hpp"
-#include "systems/integrate.hpp"
-#include "systems/pair_list.hpp"
 
-#include "engine/assert.hpp"
 #include "engine/name_table.hpp"
 
-#include <algorithm>
-#include <array>
 #include <cmath>
-#include <cstring>
 #include <limits>
+#include <optional>
+#include <span>
 #include <stdexcept>
 #include <string>
-#include <type_traits>
+#include <vector>
 
 namespace sandcell {
 
